@@ -1,0 +1,92 @@
+"""Sensor bits, motions and the reflex: the contracts of SPEC sections 4 and 6.
+
+Every part of the project (reference model, HDL, world, evaluator) imports these names; none
+re-types them.
+"""
+
+from __future__ import annotations
+
+import enum
+
+import numpy as np
+
+N_INPUTS = 8  # n: sensor bits x0..x7
+N_OUTPUTS = 3  # m: motion bits y0..y2
+N_STATES = 1 << N_INPUTS  # 256 world states
+N_MOTIONS = 1 << N_OUTPUTS  # 8 motions
+
+# Input bits (SPEC section 4). x0..x5 are obstacle bits, x6 + 2*x7 is the target sector.
+X_FRONT, X_FRONT_LEFT, X_FRONT_RIGHT, X_LEFT, X_RIGHT, X_BACK = range(6)
+OBSTACLE_BITS = 6
+OBSTACLE_MASK = (1 << OBSTACLE_BITS) - 1  # 0b00111111
+SECTOR_SHIFT = 6
+
+
+class Sector(enum.IntEnum):
+    """Target sector seen by the camera, code x6 + 2*x7."""
+
+    FRONT = 0  # -45..+45 degrees
+    LEFT = 1
+    BACK = 2
+    RIGHT = 3
+
+
+class Motion(enum.IntEnum):
+    """Motion code y0 + 2*y1 + 4*y2 (SPEC section 4)."""
+
+    FORWARD = 0
+    BACKWARD = 1
+    TURN_LEFT = 2
+    TURN_RIGHT = 3
+    FORWARD_LEFT = 4
+    FORWARD_RIGHT = 5
+    BACKWARD_LEFT = 6
+    BACKWARD_RIGHT = 7
+
+
+# Starting magnitudes (SPEC section 4): translation in mm (signed, + is forward) and rotation in
+# degrees (+ is counter-clockwise, i.e. left) for each motion code.
+STEP_MM = 50
+TURN_DEG = 22.5
+MOTION_TRANSLATION_MM = np.array([STEP_MM, -STEP_MM, 0, 0, STEP_MM, STEP_MM, -STEP_MM, -STEP_MM])
+MOTION_ROTATION_DEG = np.array([0.0, 0.0, TURN_DEG, -TURN_DEG, TURN_DEG, -TURN_DEG, TURN_DEG, -TURN_DEG])
+
+# dist[a] of the model-based fitness (SPEC section 7): distance covered by each motion, integer mm.
+MOTION_DISTANCE_MM = np.abs(MOTION_TRANSLATION_MM).astype(np.int64)
+MAX_MOTION_DISTANCE_MM = int(MOTION_DISTANCE_MM.max())
+
+# The reflex (SPEC section 6): the motion taken when no obstacle bit is set, by target sector.
+REFLEX_MOTION = np.array(
+    [Motion.FORWARD, Motion.TURN_LEFT, Motion.TURN_LEFT, Motion.TURN_RIGHT], dtype=np.uint8
+)  # indexed by Sector: front, left, back, right
+
+
+def sector_of(state: int) -> Sector:
+    """The target sector encoded in world state ``state``."""
+    return Sector((state >> SECTOR_SHIFT) & 3)
+
+
+def obstacle_bits(state: int) -> int:
+    """The six obstacle bits x0..x5 of ``state``."""
+    return state & OBSTACLE_MASK
+
+
+def reflex_applies(state: int) -> bool:
+    """True when no obstacle is perceived, so the reflex fixes the motion."""
+    return obstacle_bits(state) == 0
+
+
+def make_state(obstacles: int, sector: int) -> int:
+    """Pack six obstacle bits and a sector code into an 8-bit world state."""
+    if not 0 <= obstacles <= OBSTACLE_MASK:
+        raise ValueError(f"obstacle bits must be in 0..{OBSTACLE_MASK}, got {obstacles!r}")
+    if not 0 <= sector <= 3:
+        raise ValueError(f"sector must be in 0..3, got {sector!r}")
+    return obstacles | (sector << SECTOR_SHIFT)
+
+
+# States where the reflex overrides the controller (4 of them, one per sector), and their motions.
+REFLEX_STATES = np.array([make_state(0, s) for s in range(4)], dtype=np.int64)
+# A 256-entry table: reflex motion where the reflex applies, -1 elsewhere.
+REFLEX_TABLE = np.full(N_STATES, -1, dtype=np.int16)
+REFLEX_TABLE[REFLEX_STATES] = REFLEX_MOTION
