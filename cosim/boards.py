@@ -54,3 +54,121 @@ class EvaluatorBoard(Protocol):
 
     def evaluate(self, population: np.ndarray) -> EvalCounts:
         """(crashes, loops, distance) of every controller of ``population`` (P, 50)."""
+
+
+# --------------------------------------------------------------------------------------------
+# The reference backend: NumPy models behind the two board interfaces.
+
+
+class ReferenceControllerBoard:
+    """The robot's board as a NumPy truth table (``ga.truth_table``), reflex in front.
+
+    ``load`` computes the 256-entry table of the new controller at once, which is the reference
+    for the HDL's shadow-configuration-then-commit: the robot never sees a half-loaded controller.
+    """
+
+    def __init__(self, reflex: bool = True):
+        from ga.genome import N_ROWS, ROW_DTYPE
+
+        self.cycles = 0
+        self._reflex = bool(reflex)
+        self._rows = np.zeros(N_ROWS, dtype=ROW_DTYPE)
+        self._table = self._compute()
+
+    def _compute(self) -> np.ndarray:
+        from ga.truth_table import truth_tables
+
+        return truth_tables(self._rows, reflex=self._reflex)
+
+    def load(self, rows: np.ndarray) -> None:
+        from ga.genome import validate_rows
+
+        rows = validate_rows(rows)
+        if rows.ndim != 1:
+            raise ValueError(f"a controller board holds one genome (50,), got shape {rows.shape!r}")
+        self._rows = rows.copy()
+        self._table = self._compute()
+
+    def set_reflex(self, enabled: bool) -> None:
+        self._reflex = bool(enabled)
+        self._table = self._compute()
+
+    def motion(self, state: int) -> int:
+        if not 0 <= state < self._table.shape[0]:
+            raise ValueError(f"a world state is in 0..{self._table.shape[0] - 1}, got {state!r}")
+        return int(self._table[state])
+
+
+class ReferenceEvaluatorBoard:
+    """The evaluator board as ``ga.world_model.WorldModel`` plus ``ga.evaluator.evaluate_population``."""
+
+    def __init__(self, reflex: bool = True):
+        from ga.world_model import WorldModel
+
+        self.cycles = 0
+        self.reflex = bool(reflex)
+        self.model = WorldModel()
+
+    def observe(self, state: int, motion: int, next_state: int, crashed: bool) -> None:
+        self.model.observe(int(state), int(motion), int(next_state), bool(crashed))
+
+    def evaluate(self, population: np.ndarray) -> EvalCounts:
+        from ga.evaluator import evaluate_population
+
+        result = evaluate_population(population, self.model, reflex=self.reflex)
+        return EvalCounts(
+            crashes=np.asarray(result.crashes),
+            loops=np.asarray(result.loops),
+            distance=np.asarray(result.distance),
+        )
+
+
+class BackendUnavailable(RuntimeError):
+    """A board backend that is named in SPEC section 9 but not installed in this checkout yet."""
+
+
+# name -> factory(reflex: bool, **options) -> (ControllerBoard, EvaluatorBoard). The HDL backends
+# register themselves here (``register_backend``) so that the loops never import them directly.
+_FACTORIES: dict = {}
+
+
+def register_backend(name: str, factory) -> None:
+    """Make ``make_boards(name, ...)`` call ``factory(reflex=..., **options)``."""
+    if name not in BACKENDS:
+        raise ValueError(f"unknown backend {name!r}; SPEC section 9 names {BACKENDS!r}")
+    _FACTORIES[name] = factory
+
+
+def _reference_factory(reflex: bool = True, **options):
+    if options:
+        raise TypeError(f"the reference backend takes no options, got {sorted(options)!r}")
+    return ReferenceControllerBoard(reflex=reflex), ReferenceEvaluatorBoard(reflex=reflex)
+
+
+register_backend("reference", _reference_factory)
+
+
+def make_boards(backend: str = "reference", *, reflex: bool = True, **options):
+    """A fresh (controller board, evaluator board) pair of the named backend.
+
+    Both boards start empty: no controller loaded, an empty world model.
+    """
+    if backend not in BACKENDS:
+        raise ValueError(f"unknown backend {backend!r}; choose one of {BACKENDS!r}")
+    if backend not in _FACTORIES:
+        # The HDL backends register from their own modules; importing them here keeps the
+        # reference path free of Amaranth/cocotb imports.
+        import importlib
+
+        module = {"amaranth": "cosim.amaranth_boards", "cocotb": "cosim.cocotb_boards"}[backend]
+        try:
+            importlib.import_module(module)
+        except ModuleNotFoundError as error:
+            if error.name != module:
+                raise
+    if backend not in _FACTORIES:
+        raise BackendUnavailable(
+            f"backend {backend!r} is not available in this checkout yet (no module registers it); "
+            f"use --backend reference"
+        )
+    return _FACTORIES[backend](reflex=reflex, **options)
