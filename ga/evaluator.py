@@ -1,0 +1,182 @@
+"""Model-based fitness of SPEC section 7 (normative): (crashes, loops, distance) and the fitness.
+
+Two implementations that must agree exactly:
+
+- :func:`evaluate_python` / :func:`trace_counts`: the SPEC pseudo-code, line by line (one genome).
+- :func:`evaluate_population`: a whole population at once in NumPy, no Python loop per state or
+  per individual. It uses three facts that follow from the pseudo-code (and the world-model
+  invariant that every next state is in S):
+
+  1. every state of S is tested exactly once (a trace only moves to an untested state), so
+     ``crashes`` = #{s in S : model[s, T(s)] is a crash} and ``distance`` = the sum of
+     dist[T(s)] over the s in S whose entry is known and not a crash (T = the truth table);
+  2. a trace stops in s unless s is *continuing*: its entry is known, not a crash, and not the
+     free-space self-loop (next = s with no obstacle bit). Continuing states form a functional
+     graph s -> next(s);
+  3. ``loops`` = the number of cycles of that graph: the first trace that enters a cycle walks
+     round it (every node continues) and closes it (s2 in trace), and a later trace stops on a
+     tested node before closing it again. A self-loop with obstacle bits is a cycle of length 1.
+
+  Cycles are counted by pointer doubling on the graph restricted to S plus a sink node (every
+  non-continuing state points to the sink): after ceil(log2(N + 1)) squarings, f^L maps every
+  node onto its cycle (L >= N + 1 steps), the image of f^L is the set of cyclic nodes, and a
+  cyclic node is counted when it is the smallest of its cycle (the running minimum over L steps).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ga.genome import validate_rows
+from ga.motions import MAX_MOTION_DISTANCE_MM, MOTION_DISTANCE_MM, N_MOTIONS, N_STATES, OBSTACLE_MASK
+from ga.truth_table import motion_of, truth_tables
+from ga.world_model import WorldModel
+
+# Fitness weights of SPEC section 7.
+W_CRASHES, W_LOOPS, W_DISTANCE = 0.5, 0.4, 0.1
+
+
+@dataclass(frozen=True)
+class EvalResult:
+    """(crashes, loops, distance) of each controller: int64 arrays (P,)."""
+
+    crashes: np.ndarray
+    loops: np.ndarray
+    distance: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.crashes)
+
+    def row(self, i: int) -> tuple[int, int, int]:
+        return int(self.crashes[i]), int(self.loops[i]), int(self.distance[i])
+
+
+def fitness(result: EvalResult, n_states: int) -> np.ndarray:
+    """Fitness of SPEC section 7 for every controller: (P,) float64.
+
+    fitness = 0.5 (1 - crashes/N) + 0.4 (1 - loops/N) + 0.1 distance / (N max(dist)).
+    With N = 0 (an empty model) every controller is equally unknown: the fitness is 0.
+    """
+    if isinstance(n_states, bool) or not isinstance(n_states, (int, np.integer)) or n_states < 0:
+        raise ValueError(f"n_states must be a non-negative integer, got {n_states!r}")
+    crashes = np.asarray(result.crashes, dtype=np.float64)
+    if n_states == 0:
+        return np.zeros(crashes.shape, dtype=np.float64)
+    n = float(n_states)
+    loops = np.asarray(result.loops, dtype=np.float64)
+    distance = np.asarray(result.distance, dtype=np.float64)
+    return (W_CRASHES * (1.0 - crashes / n) + W_LOOPS * (1.0 - loops / n)
+            + W_DISTANCE * distance / (n * MAX_MOTION_DISTANCE_MM))
+
+
+# -- the pseudo-code, one genome ------------------------------------------------------------------
+
+
+def trace_counts(motion, model: WorldModel) -> tuple[int, int, int]:
+    """The SPEC pseudo-code for one controller given as ``motion(state) -> code`` (a callable,
+    or a 256-entry truth table). Returns (crashes, loops, distance)."""
+    if not callable(motion):
+        table = [int(v) for v in np.asarray(motion).reshape(-1)]
+        if len(table) != N_STATES:
+            raise ValueError(f"a truth table has {N_STATES} entries, got {len(table)}")
+        motion = table.__getitem__
+    valid, crash, nxt = model.valid.tolist(), model.crash.tolist(), model.next_state.tolist()
+    dist = [int(d) for d in MOTION_DISTANCE_MM]
+    tested: set[int] = set()
+    crashes = loops = distance = 0
+    for s0 in model.states.tolist():
+        if s0 in tested:
+            continue
+        trace: set[int] = set()
+        s = s0
+        while True:
+            tested.add(s)
+            trace.add(s)
+            a = motion(s)
+            if not valid[s][a]:  # (i) unknown transition
+                break
+            if crash[s][a]:  # (ii) crash
+                crashes += 1
+                break
+            distance += dist[a]
+            s2 = nxt[s][a]
+            if s2 == s and not s & OBSTACLE_MASK:  # progress in free space, not a loop
+                break
+            if s2 in trace:  # (iv) infinite loop
+                loops += 1
+                break
+            if s2 in tested:  # (iii) already tested
+                break
+            s = s2
+    return crashes, loops, distance
+
+
+def evaluate_python(rows, model: WorldModel, reflex: bool = True) -> tuple[int, int, int]:
+    """(crashes, loops, distance) of one genome (50,) by the plain pseudo-code, the motion of each
+    visited state computed by the plain row-by-row evaluation ``ga.truth_table.motion_of``."""
+    rows = validate_rows(rows)
+    if rows.ndim != 1:
+        raise ValueError(f"evaluate_python takes one genome of shape (50,), got {rows.shape!r}")
+    return trace_counts(lambda s: motion_of(rows, s, reflex), model)
+
+
+# -- the vectorised population evaluator ----------------------------------------------------------
+
+
+def evaluate_tables(tables, model: WorldModel) -> EvalResult:
+    """(crashes, loops, distance) for truth tables (P, 256) (or (256,)): see the module docstring."""
+    tables = np.asarray(tables)
+    if tables.ndim == 1:
+        tables = tables[None]
+    if tables.ndim != 2 or tables.shape[1] != N_STATES:
+        raise ValueError(f"truth tables must have shape (P, {N_STATES}), got {tables.shape!r}")
+    pop = tables.shape[0]
+    states = model.states  # S ascending, (N,)
+    n = len(states)
+    if n == 0 or pop == 0:
+        zeros = np.zeros(pop, dtype=np.int64)
+        return EvalResult(zeros, zeros.copy(), zeros.copy())
+    a = tables[:, states].astype(np.intp)  # (P, N) motion in each state of S
+    # One gather from the packed table: bit 9 valid, bit 8 crash, bits 0-7 next state.
+    packed = (model.valid.astype(np.int32) << 9) | (model.crash.astype(np.int32) << 8) | model.next_state
+    entry = packed.ravel()[states[None, :] * N_MOTIONS + a]  # (P, N)
+    known = entry >= 1 << 9
+    crashed = (entry & (1 << 8)) != 0
+    nxt = entry & 0xFF
+    ok = known & ~crashed
+    crashes = crashed.sum(axis=1, dtype=np.int64)  # a crash entry is always valid
+    distance = (MOTION_DISTANCE_MM[a] * ok).sum(axis=1, dtype=np.int64)
+
+    # Functional graph on flat node ids p (N + 1) + i: i = 0..N-1 the positions in S, i = N the
+    # individual's sink. Non-continuing states point to the sink, the sink to itself.
+    width = n + 1
+    index_of = np.full(N_STATES, n, dtype=np.intp)
+    index_of[states] = np.arange(n)
+    free_self = (nxt == states[None, :]) & ((states & OBSTACLE_MASK) == 0)[None, :]
+    continuing = ok & ~free_self
+    base = (np.arange(pop, dtype=np.intp) * width)[:, None]
+    succ = np.empty((pop, width), dtype=np.intp)
+    succ[:, :n] = np.where(continuing, index_of[nxt], n)
+    succ[:, n] = n
+    succ = (succ + base).ravel()
+    node = np.arange(pop * width, dtype=np.intp)
+    low = node.copy()  # the smallest node id on the path window (same individual: same base)
+    rounds = int(np.ceil(np.log2(width)))
+    for _ in range(rounds):  # window doubles: 1, 2, 4, ... >= N + 1 steps
+        low = np.minimum(low, low[succ])
+        succ = succ[succ]
+    # succ = f^L with L >= N + 1: every node now sits on its cycle (or at its sink).
+    cyclic = np.zeros(pop * width, dtype=bool)
+    cyclic[succ] = True
+    heads = (cyclic & (low == node)).reshape(pop, width)
+    loops = heads[:, :n].sum(axis=1, dtype=np.int64)
+    return EvalResult(crashes, loops, distance)
+
+
+def evaluate_population(rows, model: WorldModel, reflex: bool = True) -> EvalResult:
+    """(crashes, loops, distance) of every genome of ``rows`` (P, 50) (or one genome (50,)) on
+    ``model``; int64 arrays (P,). Bit-exact with :func:`evaluate_python`."""
+    rows = validate_rows(rows)
+    return evaluate_tables(truth_tables(rows[None] if rows.ndim == 1 else rows, reflex), model)
