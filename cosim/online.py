@@ -1,0 +1,604 @@
+"""The on-line model-based experiment (paper section 5.2, SPEC section 7): one robot lifetime.
+
+    python -m cosim.online --backend reference --seed 1 [--arena default] [--resume]
+                           [--out results/model_based] [--continue-past-64 N]
+                           [--blind-bit B --blind-after-target T]
+
+Structure (an alternation of execution and learning phases, in sequence as in the paper):
+
+- **Execution phase.** The controller board drives the robot in the noisy world (``DEFAULT_NOISE``):
+  per step, ``a = controller.motion(s)``, one ``World.step(a)`` (one *interaction*), and
+  ``evaluator.observe(s, a, s2, crashed)`` updates the world model on the evaluator board. Reaching
+  the target relocates the robot to the next of the 64 poses. The phase ends on a *failure*: a
+  crash, a leg time-out (``max_leg_steps`` steps on one leg since the phase began), or, when
+  enabled, a real-world loop (``loop_window``: no new closest approach to the ball for that many
+  steps; see docs/online.md).
+- **Learning phase.** ``generations_per_phase`` generations of the GA (population 500, tournament
+  20, elitism; the GA is kept across phases), each population evaluated by
+  ``evaluator.evaluate(pop)`` and scored with the normative fitness (``ga.evaluator.fitness``); the
+  best is downloaded with ``controller.load(best)``. Optionally (``targeted``) part of the
+  population is first rewritten at the state that failed (``ga.online_operators``).
+- At the very start the model is empty and a random individual of the initial population drives.
+- Stop at ``n_targets`` targets (64; more with ``--continue-past-64``).
+
+The loop calls the boards only through ``cosim.boards`` (``load``, ``set_reflex``, ``motion``,
+``observe``, ``evaluate``, ``cycles``); it is synchronous and keeps no global state, so an HDL
+backend (or a cocotb test running it in a thread) plugs in unchanged.
+
+Checkpoint and resume: after every learning phase the GA state, the counters, the phase records and
+the log of executed motions go to ``<out>/checkpoint.json``. ``--resume`` rebuilds the world and
+the evaluator board by replaying the logged motions (the world is deterministic for its seed), so a
+resumed run is the uninterrupted run, bit for bit.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import sys
+import time
+from collections import Counter, deque
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from cosim.boards import BACKENDS, make_boards
+from cosim.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
+from ga.evaluator import fitness as model_fitness
+from ga.evolution import GAConfig, GeneticAlgorithm
+from ga.genome import hex_from_rows, rows_from_hex
+from ga.motions import OBSTACLE_MASK
+from ga.online_operators import diversity, targeted_mutants
+from ga.world_model import WorldModel
+from sim_world.world import DEFAULT_NOISE, Fault, World
+
+CHECKPOINT_KIND = "online"
+N_POSITIONS = 64
+# The paper's figures (section 5.2) printed beside ours.
+PAPER = {
+    "interactions": 12_280,
+    "generations": 485,  # 242,500 genetic operations / 500 individuals
+    "genetic_operations": 242_500,
+    "world_states": 84,
+    "transitions": 334,
+    "targets_reached": 64,
+}
+
+
+@dataclass(frozen=True)
+class OnlineConfig:
+    """Everything that defines one on-line run (a checkpoint resumes only under the same config)."""
+
+    seed: int = 1
+    arena: str = "default"
+    n_targets: int = 64
+    noise: bool = True  # the "real" world: sim_world.world.DEFAULT_NOISE
+    reflex: bool = True
+    # GA (SPEC section 7: population 500, tournament 20, elitism, about 10 generations a phase)
+    population: int = 500
+    tournament: int = 20
+    elitism: int = 1
+    generations_per_phase: int = 10
+    crossover_rate: float = 0.5
+    literal_rate: float = 0.004
+    output_rate: float = 0.004
+    switch_rate: float = 0.01
+    replace_rate: float = 0.005
+    # execution phase
+    max_leg_steps: int = 500  # leg time-out: steps on one leg since the phase began
+    loop_window: int = 0  # > 0: stop when no new closest approach to the ball for this many steps
+    # learning phase
+    targeted: int = 0  # state-targeted mutants of the best written into the population per phase
+    # adaptation: blind IR bit `blind_bit` (stuck at 0) once `blind_after_target` targets are reached
+    blind_bit: int | None = None
+    blind_after_target: int | None = None
+
+    def __post_init__(self):
+        if self.n_targets < 1:
+            raise ValueError(f"n_targets must be at least 1, got {self.n_targets!r}")
+        if self.max_leg_steps < 1:
+            raise ValueError(f"max_leg_steps must be at least 1, got {self.max_leg_steps!r}")
+        if self.generations_per_phase < 1:
+            raise ValueError(f"generations_per_phase must be at least 1, got {self.generations_per_phase!r}")
+        if (self.blind_bit is None) != (self.blind_after_target is None):
+            raise ValueError("blind_bit and blind_after_target go together, got "
+                             f"{self.blind_bit!r} and {self.blind_after_target!r}")
+        if self.blind_bit is not None and self.blind_bit not in range(6):
+            raise ValueError(f"blind_bit must be an IR bit 0..5, got {self.blind_bit!r}")
+
+    def ga_config(self) -> GAConfig:
+        return GAConfig(
+            population=self.population, tournament=self.tournament, elitism=self.elitism,
+            crossover_rate=self.crossover_rate, literal_rate=self.literal_rate,
+            output_rate=self.output_rate, switch_rate=self.switch_rate, replace_rate=self.replace_rate,
+        )
+
+    def to_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+def _seeds(seed: int) -> tuple[int, np.random.Generator]:
+    """The world's noise seed and the GA's generator, both derived from the run's seed."""
+    world_seq, ga_seq = np.random.SeedSequence(seed).spawn(2)
+    return int(world_seq.generate_state(1)[0]), np.random.default_rng(ga_seq)
+
+
+class OnlineRun:
+    """One robot lifetime of the on-line model-based method on a (controller, evaluator) board pair.
+
+    ``run()`` goes to ``config.n_targets`` targets (or ``stop_after_phases`` learning phases);
+    ``summary()`` gives the figures. Host-side bookkeeping (state set, transitions met, a mirror
+    of the world model used only for instrumentation and targeted mutation) never feeds the
+    boards: the evaluator board holds its own model, updated only by ``observe``.
+    """
+
+    def __init__(self, config: OnlineConfig, controller, evaluator, checkpoint: Path | None = None,
+                 progress: bool = False, backend: str = "reference"):
+        self.config = config
+        self.controller = controller
+        self.evaluator = evaluator
+        self.checkpoint_path = checkpoint
+        self.progress = progress
+        self.backend = backend
+        world_seed, self.rng = _seeds(config.seed)
+        self.world = World(config.arena, noise=DEFAULT_NOISE if config.noise else None, seed=world_seed)
+        self.ga = GeneticAlgorithm(config.ga_config(), self.rng)
+        controller.set_reflex(config.reflex)
+        # --- lifetime counters (rebuilt by replay on resume) ---
+        self.motions: list[int] = []  # every motion executed, in order (the replay log)
+        self.interactions = 0
+        self.targets = 0
+        self.leg_steps = 0  # steps on the current leg since the last (re)start of execution
+        self.mirror = WorldModel()  # host copy of the model (instrumentation, targeted mutation)
+        self.transitions: set[tuple[int, int, int, bool]] = set()
+        self.trajectory: list[tuple[float, float, str]] = []
+        self.curve_states: list[int] = []  # |S| after each interaction
+        self.curve_transitions: list[int] = []
+        self.known_crash_repeats = 0  # motions chosen in a state where the model knows they crash
+        self.window = deque(maxlen=max(config.loop_window, 64))  # recent (state, motion)
+        self.closest = float("inf")
+        self.since_closer = 0
+        self.blinded_at: int | None = None
+        # --- evolution counters (saved in the checkpoint) ---
+        self.generations = 0
+        self.genetic_operations = 0
+        self.phases: list[dict] = []
+        self.target_log: list[dict] = []
+        self.best_rows: np.ndarray | None = None
+        self.started = False
+        self.state = self.world.reset_to_start()
+        self.trajectory.append((*self.world.pose[:2], "start"))
+        self.wall_time_s = 0.0
+
+    # -- the world side ------------------------------------------------------------------------
+
+    def _advance(self, motion: int, record: bool = True):
+        """Execute one motion: one interaction, one model update; relocation after a target."""
+        s = self.state
+        if self.mirror.crash[s, motion]:
+            self.known_crash_repeats += 1
+        step = self.world.step(motion)
+        self.evaluator.observe(s, motion, step.state, step.crashed)
+        self.mirror.observe(s, motion, step.state, step.crashed)
+        self.transitions.add((s, motion, step.state, step.crashed))
+        self.motions.append(motion)
+        self.interactions += 1
+        self.leg_steps += 1
+        self.window.append((s, motion))
+        self.curve_states.append(self.mirror.n_states)
+        self.curve_transitions.append(len(self.transitions))
+        x, y, _ = self.world.pose
+        self.state = step.state
+        if step.crashed:
+            self.trajectory.append((x, y, "crash"))
+        elif step.reached:
+            self.trajectory.append((x, y, "target"))
+            self.targets += 1
+            if record:
+                self.target_log.append({
+                    "target": self.targets, "interactions": self.interactions,
+                    "generations": self.generations, "world_states": self.mirror.n_states,
+                    "transitions": len(self.transitions),
+                })
+            if self.config.blind_bit is not None and self.targets == self.config.blind_after_target:
+                self.world.faults = (Fault(at_step=self.world.interactions, bit=self.config.blind_bit),)
+                self.blinded_at = self.interactions
+            self.state = self.world.relocate((self.targets - 1) % N_POSITIONS)
+            self.leg_steps = 0
+            self.closest, self.since_closer = float("inf"), 0
+            self.window.clear()
+            self.trajectory.append((*self.world.pose[:2], "relocate"))
+        else:
+            self.trajectory.append((x, y, ""))
+        if step.distance_mm < self.closest - 1e-9:
+            self.closest, self.since_closer = step.distance_mm, 0
+        else:
+            self.since_closer += 1
+        return step
+
+    def _execute(self) -> tuple[str, int, int, int]:
+        """One execution phase: (reason, steps, failing state, failing motion); reason is
+        'crash', 'timeout', 'loop' or 'done'."""
+        cfg = self.config
+        steps = 0
+        self.leg_steps = 0
+        self.closest, self.since_closer = float("inf"), 0
+        while True:
+            s = self.state
+            a = self.controller.motion(s)
+            step = self._advance(a)
+            steps += 1
+            if step.reached:
+                if self.progress_bar is not None:
+                    self.progress_bar.update(1)
+                    self.progress_bar.set_postfix(interactions=self.interactions, generations=self.generations)
+                if self.targets >= cfg.n_targets:
+                    return "done", steps, s, a
+                continue
+            if step.crashed:
+                return "crash", steps, s, a
+            if self.leg_steps >= cfg.max_leg_steps:
+                return "timeout", steps, *self._blame()
+            if cfg.loop_window and self.since_closer >= cfg.loop_window:
+                return "loop", steps, *self._blame()
+
+    def _blame(self) -> tuple[int, int]:
+        """The (state, motion) a time-out or loop is blamed on: the most frequent recent pair in a
+        state the controller decides (some obstacle bit set), else the last pair."""
+        pairs = [p for p in self.window if p[0] & OBSTACLE_MASK]
+        if not pairs:
+            return self.window[-1]
+        return Counter(pairs).most_common(1)[0][0]
+
+    # -- the learning side ---------------------------------------------------------------------
+
+    def _learn(self, reason: str, steps: int, state: int, motion: int) -> None:
+        cfg = self.config
+        record = {
+            "phase": len(self.phases) + 1, "reason": reason, "interactions": self.interactions,
+            "targets": self.targets, "execution_steps": steps, "state": int(state), "motion": int(motion),
+            "world_states": self.mirror.n_states, "model_transitions": self.mirror.n_transitions,
+        }
+        if cfg.targeted and self.best_rows is not None and state & OBSTACLE_MASK:
+            avoid = {motion} | set(np.flatnonzero(self.mirror.crash[state]).tolist())
+            mutants = targeted_mutants(self.rng, self.best_rows, state, avoid, cfg.targeted)
+            base = cfg.population - len(mutants)
+            for i, rows in enumerate(mutants):
+                self.ga.replace(base + i, rows)
+            record["targeted"] = len(mutants)
+        n_states = self.mirror.n_states
+        for _ in range(cfg.generations_per_phase):
+            pop = self.ga.ask()
+            counts = self.evaluator.evaluate(pop)
+            self.ga.tell(model_fitness(counts, n_states))
+            self.generations += 1
+            self.genetic_operations += pop.shape[0]
+        best = self.ga.best_rows
+        self.best_rows = best.copy()
+        self.controller.load(best)
+        last = self.ga.last_fitness
+        i_best = int(np.argmax(last))
+        record.update({
+            "best_fitness": round(float(last[i_best]), 6),
+            "best_crashes": int(counts.crashes[i_best]), "best_loops": int(counts.loops[i_best]),
+            "best_distance": int(counts.distance[i_best]),
+            "new_motion": int(self.controller.motion(state)),
+            "changed": int(self.controller.motion(state)) != int(motion),
+            "population_avoids": float(np.mean(
+                [m != motion for m in _motions_in(self.ga.ask(), state, cfg.reflex)])),
+        })
+        record.update(diversity(pop, self.mirror.states))
+        self.phases.append(record)
+
+    # -- the lifetime --------------------------------------------------------------------------
+
+    progress_bar = None
+
+    def run(self, stop_after_phases: int | None = None) -> "OnlineRun":
+        cfg = self.config
+        t0 = time.perf_counter()
+        if self.progress:
+            from tqdm import tqdm
+
+            self.progress_bar = tqdm(total=cfg.n_targets, initial=min(self.targets, cfg.n_targets),
+                                     unit="target", desc="on-line", file=sys.stderr)
+        try:
+            if not self.started:
+                # Empty model: a random individual of the initial population drives.
+                pop = self.ga.ask()
+                self.best_rows = pop[int(self.rng.integers(pop.shape[0]))].copy()
+                self.controller.load(self.best_rows)
+                self.started = True
+            while self.targets < cfg.n_targets:
+                if stop_after_phases is not None and len(self.phases) >= stop_after_phases:
+                    break
+                reason, steps, s, a = self._execute()
+                if reason == "done":
+                    break
+                self._learn(reason, steps, s, a)
+                self.wall_time_s += time.perf_counter() - t0
+                t0 = time.perf_counter()
+                if self.checkpoint_path is not None:
+                    self.save(self.checkpoint_path)
+        finally:
+            self.wall_time_s += time.perf_counter() - t0
+            if self.progress_bar is not None:
+                self.progress_bar.close()
+                self.progress_bar = None
+        return self
+
+    # -- checkpoints ---------------------------------------------------------------------------
+
+    def state_dict(self) -> dict:
+        return {
+            "motions": bytes(self.motions).hex(),
+            "interactions": self.interactions,
+            "targets": self.targets,
+            "generations": self.generations,
+            "genetic_operations": self.genetic_operations,
+            "phases": self.phases,
+            "target_log": self.target_log,
+            "best_rows": None if self.best_rows is None else hex_from_rows(self.best_rows),
+            "started": self.started,
+            "ga": self.ga.state_dict(),
+            "wall_time_s": self.wall_time_s,
+        }
+
+    def save(self, path: Path) -> None:
+        save_checkpoint(path, CHECKPOINT_KIND, self.config.to_dict(), self.state_dict())
+
+    def load_state(self, d: dict) -> None:
+        """Continue from ``state_dict`` output: replay the motions through world and evaluator."""
+        if self.interactions:
+            raise RuntimeError("load_state needs a fresh OnlineRun")
+        for motion in bytes.fromhex(d["motions"]):
+            self._advance(motion, record=False)
+        if self.interactions != d["interactions"] or self.targets != d["targets"]:
+            raise CheckpointError(
+                f"replaying the checkpoint's motions gave {self.interactions} interactions and "
+                f"{self.targets} targets, the checkpoint says {d['interactions']} and {d['targets']}"
+            )
+        self.generations = int(d["generations"])
+        self.genetic_operations = int(d["genetic_operations"])
+        self.phases = list(d["phases"])
+        self.target_log = list(d["target_log"])
+        self.started = bool(d["started"])
+        self.wall_time_s = float(d["wall_time_s"])
+        self.ga = GeneticAlgorithm.from_state_dict(d["ga"], self.rng)
+        if d["best_rows"] is not None:
+            self.best_rows = rows_from_hex(d["best_rows"])
+            self.controller.load(self.best_rows)
+
+    # -- results -------------------------------------------------------------------------------
+
+    def summary(self) -> dict:
+        """The off-line summary's keys plus the on-line ones (phases and their reasons)."""
+        cfg = self.config
+        reasons = Counter(p["reason"] for p in self.phases)
+        lost = sum(p["execution_steps"] for p in self.phases if p["reason"] in ("timeout", "loop"))
+        at64 = next((t for t in self.target_log if t["target"] == min(64, cfg.n_targets)), None)
+        out = {
+            "method": "online-model-based",
+            "backend": self.backend,
+            "seed": cfg.seed,
+            "arena": cfg.arena,
+            "interactions": self.interactions,
+            "generations": self.generations,
+            "genetic_operations": self.genetic_operations,
+            "world_states": self.mirror.n_states,
+            "transitions": len(self.transitions),
+            "model_transitions": self.mirror.n_transitions,
+            "targets_reached": self.targets,
+            "best_genome": None if self.best_rows is None else hex_from_rows(self.best_rows),
+            "wall_time_s": round(self.wall_time_s, 3),
+            "learning_phases": len(self.phases),
+            "phase_reasons": dict(sorted(reasons.items())),
+            "interactions_in_failed_phases": lost,
+            "known_crash_repeats": self.known_crash_repeats,
+            "crashes": sum(1 for p in self.phases if p["reason"] == "crash"),
+            "board_cycles": {"controller": int(getattr(self.controller, "cycles", 0)),
+                             "evaluator": int(getattr(self.evaluator, "cycles", 0))},
+            "config": cfg.to_dict(),
+            "phases": self.phases,
+            "targets": self.target_log,
+        }
+        if at64 is not None and cfg.n_targets > 64:
+            out["at_64_targets"] = at64
+        if self.blinded_at is not None:
+            out["adaptation"] = adaptation_figures(self.target_log, cfg.blind_after_target, self.blinded_at)
+        return out
+
+
+def _motions_in(pop: np.ndarray, state: int, reflex: bool) -> np.ndarray:
+    from ga.truth_table import truth_tables
+
+    return truth_tables(pop, reflex=reflex)[:, state]
+
+
+def adaptation_figures(target_log: list[dict], after: int, blinded_at: int, window: int = 8) -> dict:
+    """Interactions from the blinding to each of the next ``window`` targets."""
+    later = [t for t in target_log if after < t["target"] <= after + window]
+    return {
+        "blinded_after_target": after,
+        "blinded_at_interaction": blinded_at,
+        "targets_after": len(later),
+        "interactions_for_next_targets": (later[-1]["interactions"] - blinded_at) if len(later) == window else None,
+        "per_target": [t["interactions"] - blinded_at for t in later],
+    }
+
+
+def make_run(config: OnlineConfig, backend: str = "reference", out: Path | None = None,
+             resume: bool = False, progress: bool = False) -> OnlineRun:
+    """A run on fresh boards of ``backend``; with ``resume``, continued from ``out/checkpoint.json``."""
+    controller, evaluator = make_boards(backend, reflex=config.reflex)
+    ckpt = None if out is None else Path(out) / "checkpoint.json"
+    run = OnlineRun(config, controller, evaluator, checkpoint=ckpt, progress=progress, backend=backend)
+    if resume:
+        if ckpt is None:
+            raise CheckpointError("--resume needs an output directory holding checkpoint.json")
+        run.load_state(load_checkpoint(ckpt, CHECKPOINT_KIND, config.to_dict()))
+    return run
+
+
+# -- reporting -----------------------------------------------------------------------------------
+
+
+def summary_table(summary: dict) -> str:
+    """The figures beside the paper's (section 5.2)."""
+    rows = [("targets reached", "targets_reached"), ("interactions", "interactions"),
+            ("generations", "generations"), ("genetic operations", "genetic_operations"),
+            ("world states", "world_states"), ("transitions", "transitions")]
+    src = summary.get("at_64_targets") or {}
+    lines = [f"{'':22s}{'this run':>14s}{'paper':>12s}", "-" * 48]
+    for label, key in rows:
+        value = src.get(key, summary.get(key))
+        if key == "genetic_operations" and src:
+            value = src["generations"] * summary["config"]["population"]
+        lines.append(f"{label:22s}{value:>14,}{PAPER[key]:>12,}")
+    lines.append(f"{'learning phases':22s}{summary['learning_phases']:>14,}{'~48':>12s}")
+    reasons = ", ".join(f"{k} {v}" for k, v in summary["phase_reasons"].items())
+    lines.append(f"phase reasons: {reasons}; wall time {summary['wall_time_s']:.1f} s")
+    if "adaptation" in summary:
+        ad = summary["adaptation"]
+        lines.append(f"adaptation: IR bit {summary['config']['blind_bit']} blinded after target "
+                     f"{ad['blinded_after_target']}: {ad['interactions_for_next_targets']} interactions "
+                     f"for the next 8 targets")
+    return "\n".join(lines)
+
+
+def write_plots(run: OnlineRun, out: Path) -> list[Path]:
+    """Fig. 9 (trajectory), Fig. 10 (targets vs generations, states/transitions vs interactions),
+    Fig. 11 when the run went past 64 targets."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    fig, ax = plt.subplots(figsize=(7, 7))
+    try:
+        from sim_world.render import plot_trajectory
+
+        plot_trajectory(run.world.arena, run.trajectory, ax=ax)
+    except (ImportError, TypeError):
+        _plot_trajectory_fallback(ax, run)
+    ax.set_title(f"On-line model-based lifetime (seed {run.config.seed}): "
+                 f"{run.targets} targets, {run.interactions:,} interactions")
+    paths.append(out / "fig9_trajectory.png")
+    fig.savefig(paths[-1], dpi=110, bbox_inches="tight")
+    plt.close(fig)
+
+    def fig10(limit: int | None, name: str, title: str):
+        log = [t for t in run.target_log if limit is None or t["target"] <= limit]
+        n = log[-1]["interactions"] if (limit is not None and log) else run.interactions
+        fig, (a1, a2) = plt.subplots(1, 2, figsize=(12, 4.5))
+        gens = [0] + [t["generations"] for t in log]
+        a1.step(gens, list(range(len(log) + 1)), where="post")
+        a1.set_xlabel("generations")
+        a1.set_ylabel("targets reached")
+        a1.grid(alpha=0.3)
+        x = np.arange(1, n + 1)
+        a2.plot(x, run.curve_states[:n], label="world states")
+        a2.plot(x, run.curve_transitions[:n], label="transitions")
+        for t in log:
+            a2.axvline(t["interactions"], color="0.85", lw=0.5, zorder=0)
+        if limit is None and run.config.n_targets > 64:
+            t64 = next((t for t in log if t["target"] == 64), None)
+            if t64:
+                a1.axvline(t64["generations"], color="r", ls="--", lw=1)
+                a2.axvline(t64["interactions"], color="r", ls="--", lw=1, label="64th target")
+        a2.set_xlabel("interactions (grey: a target reached)")
+        a2.legend()
+        a2.grid(alpha=0.3)
+        fig.suptitle(title)
+        paths.append(out / name)
+        fig.savefig(paths[-1], dpi=110, bbox_inches="tight")
+        plt.close(fig)
+
+    fig10(64, "fig10_targets_states.png", "Targets vs generations; states and transitions vs interactions")
+    if run.config.n_targets > 64:
+        fig10(None, "fig11_continued.png", f"Continued past 64 targets ({run.targets} targets)")
+    return paths
+
+
+def _plot_trajectory_fallback(ax, run: OnlineRun) -> None:
+    from matplotlib.patches import Circle, Polygon
+
+    arena = run.world.arena
+    for ob in arena.obstacles:
+        if ob.is_circle:
+            ax.add_patch(Circle(ob.centre, ob.radius, color="0.5"))
+        else:
+            ax.add_patch(Polygon(list(ob.vertices), color="0.5"))
+    xs = [p[0] for p in run.trajectory]
+    ys = [p[1] for p in run.trajectory]
+    ax.plot(xs, ys, lw=0.3, color="tab:blue")
+    ax.add_patch(Circle(arena.ball, arena.target_radius_mm, fill=False, color="tab:red"))
+    ax.set_xlim(0, arena.size_mm)
+    ax.set_ylim(0, arena.size_mm)
+    ax.set_aspect("equal")
+
+
+def write_results(run: OnlineRun, out: Path, plots: bool = True) -> dict:
+    out.mkdir(parents=True, exist_ok=True)
+    summary = run.summary()
+    (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
+    if plots:
+        summary["plots"] = [str(p) for p in write_plots(run, out)]
+    return summary
+
+
+# -- command line --------------------------------------------------------------------------------
+
+
+def config_from_args(args) -> OnlineConfig:
+    return OnlineConfig(
+        seed=args.seed, arena=args.arena, n_targets=64 + args.continue_past_64,
+        population=args.population, generations_per_phase=args.generations_per_phase,
+        max_leg_steps=args.max_leg_steps, loop_window=args.loop_window, targeted=args.targeted,
+        blind_bit=args.blind_bit, blind_after_target=args.blind_after_target,
+    )
+
+
+def build_parser() -> argparse.ArgumentParser:
+    d = OnlineConfig()
+    p = argparse.ArgumentParser(prog="python -m cosim.online", description=__doc__.split("\n")[0])
+    p.add_argument("--backend", choices=BACKENDS, default="reference")
+    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--arena", default=d.arena)
+    p.add_argument("--out", type=Path, default=Path("results/model_based"))
+    p.add_argument("--resume", action="store_true", help="continue from <out>/checkpoint.json")
+    p.add_argument("--continue-past-64", type=int, default=0, metavar="N",
+                   help="go on for N more targets after the 64th (Fig. 11)")
+    p.add_argument("--blind-bit", type=int, default=None, metavar="B", help="IR bit 0..5 to blind (stuck at 0)")
+    p.add_argument("--blind-after-target", type=int, default=None, metavar="T")
+    p.add_argument("--population", type=int, default=d.population)
+    p.add_argument("--generations-per-phase", type=int, default=d.generations_per_phase)
+    p.add_argument("--max-leg-steps", type=int, default=d.max_leg_steps)
+    p.add_argument("--loop-window", type=int, default=d.loop_window)
+    p.add_argument("--targeted", type=int, default=d.targeted)
+    p.add_argument("--no-plots", action="store_true")
+    p.add_argument("--no-progress", action="store_true")
+    return p
+
+
+def main(argv=None) -> int:
+    args = build_parser().parse_args(argv)
+    config = config_from_args(args)
+    try:
+        run = make_run(config, args.backend, args.out, resume=args.resume, progress=not args.no_progress)
+    except CheckpointError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    run.run()
+    summary = write_results(run, args.out, plots=not args.no_plots)
+    print(summary_table(summary))
+    print(f"wrote {args.out / 'summary.json'}" + (f" and {len(summary.get('plots', []))} plots" if not args.no_plots else ""))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
