@@ -1,0 +1,441 @@
+"""The off-line model-free experiment (paper section 5.1, Fig. 5 and 6).
+
+A GA (population 20, tournament 5, elitism) evolves controllers in the noise-free world: every
+individual of every generation drives the robot from the start pose through the 64 relocation
+poses (`ga.model_free.evaluate`). The run stops when the best individual reaches the target 64
+times, or at a generation cap. Then the best controller is "downloaded to the real robot": it
+drives the noisy world (`sim_world.world.DEFAULT_NOISE`) and we count the targets it reaches
+before its first crash.
+
+    python -m cosim.offline --seed 1 [--generations-cap G] [--workers W] [--resume]
+                            [--out results/model_free] [--arena NAME] [--max-leg-steps N]
+
+Design:
+- Evaluation is a pure function of (genome, arena, step limits): the world is noise-free and its
+  pose cache is exact. So a process pool gives exactly the serial result (`executor.map` keeps the
+  order; the sets of states and transitions are unions, order-free), and no RNG is shared.
+- After every generation the GA state (genomes, RNG state), the counters, the sets met and the
+  history go to ``<out>/checkpoint.json`` atomically (`cosim.checkpoint`). ``--resume`` reloads
+  it and continues; the run then ends exactly as an uninterrupted one (test_offline checks it).
+  Wall time is the sum over the sessions of a run.
+- Outputs in ``<out>``: summary.json, history.json, fig5_trajectory.png,
+  fig6_best_per_generation.png.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import multiprocessing
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from cosim.checkpoint import load_checkpoint, save_checkpoint
+from ga.evolution import GAConfig, GeneticAlgorithm
+from ga.genome import hex_from_rows, rows_from_hex
+from ga.model_free import N_TARGETS, Evaluation, evaluate, fitness_vector, max_run_steps
+from ga.truth_table import truth_tables
+
+KIND = "model_free"
+DEFAULT_OUT = Path("results/model_free")
+DEFAULT_ARENA = "default"
+DEFAULT_GENERATIONS_CAP = 3000
+# Step limit of one leg: see docs/offline.md for the measurements behind it.
+DEFAULT_MAX_LEG_STEPS = 150
+TRANSFER_TRIALS = 10  # noisy-world runs of the best controller, noise seeds seed*1000 + i
+
+# The paper's model-free row (section 5.1), reported beside ours.
+PAPER = {
+    "generations": 285,
+    "interactions": 3_283_269,
+    "world_states": 122,
+    "transitions": 744,
+    "genetic_operations": 5_700,
+}
+
+
+def default_ga_config(**overrides) -> GAConfig:
+    """Paper section 5.1: population 20, tournament 5, elitism 1; our operator rates."""
+    return GAConfig(**{"population": 20, "tournament": 5, "elitism": 1, **overrides})
+
+
+# ---------------------------------------------------------------------------------------------
+# Evaluation (also run in worker processes: module-level functions, one world per process)
+# ---------------------------------------------------------------------------------------------
+
+_WORLDS: dict = {}
+
+
+def _world(arena: str):
+    from sim_world.world import World
+
+    world = _WORLDS.get(arena)
+    if world is None:
+        world = _WORLDS[arena] = World(_load_arena(arena))
+    return world
+
+
+def _load_arena(arena: str):
+    from sim_world.arena import load_arena
+
+    path = Path(arena)
+    return load_arena(path if path.suffix == ".json" else arena)
+
+
+def _evaluate_one(task) -> Evaluation:
+    arena, max_leg_steps, n_targets, rows = task
+    return evaluate(_world(arena), rows, max_leg_steps, n_targets)
+
+
+class Evaluator:
+    """Evaluates a population serially (``workers`` <= 1) or over a process pool, same result."""
+
+    def __init__(self, arena: str, max_leg_steps: int, n_targets: int = N_TARGETS, workers: int = 1):
+        self.arena, self.max_leg_steps, self.n_targets = arena, max_leg_steps, n_targets
+        self.workers = max(int(workers), 1)
+        self._pool = None
+        if self.workers > 1:
+            # spawn: workers import only what they need, no fork of a threaded parent.
+            ctx = multiprocessing.get_context("spawn")
+            self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=ctx)
+
+    def __call__(self, pop: np.ndarray) -> list[Evaluation]:
+        tasks = [(self.arena, self.max_leg_steps, self.n_targets, rows) for rows in pop]
+        if self._pool is None:
+            return [_evaluate_one(t) for t in tasks]
+        return list(self._pool.map(_evaluate_one, tasks))
+
+    def close(self) -> None:
+        if self._pool is not None:
+            self._pool.shutdown(cancel_futures=True)
+            self._pool = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+# ---------------------------------------------------------------------------------------------
+# The run
+# ---------------------------------------------------------------------------------------------
+
+
+def _arena_digest(arena: str) -> str:
+    data = json.dumps(_load_arena(arena).to_json(), sort_keys=True)
+    return hashlib.sha256(data.encode()).hexdigest()[:16]
+
+
+def run_config(seed: int, arena: str, max_leg_steps: int, n_targets: int, ga_config: GAConfig) -> dict:
+    """The parameters that define a run: a checkpoint resumes only under the same ones."""
+    return {
+        "seed": int(seed),
+        "arena": str(arena),
+        "arena_sha256_16": _arena_digest(arena),
+        "max_leg_steps": int(max_leg_steps),
+        "n_targets": int(n_targets),
+        "ga": ga_config.to_dict(),
+    }
+
+
+def _fresh_state(ga: GeneticAlgorithm) -> dict:
+    return {
+        "ga": ga.state_dict(),
+        "interactions": 0,
+        "world_states": [],
+        "transitions": [],
+        "history": [],
+        "best": None,
+        "wall_time_s": 0.0,
+    }
+
+
+def run_offline(
+    seed: int,
+    *,
+    generations_cap: int = DEFAULT_GENERATIONS_CAP,
+    workers: int = 1,
+    resume: bool = False,
+    out: Path | str = DEFAULT_OUT,
+    arena: str = DEFAULT_ARENA,
+    max_leg_steps: int = DEFAULT_MAX_LEG_STEPS,
+    n_targets: int = N_TARGETS,
+    ga_config: GAConfig | None = None,
+    progress: bool = True,
+    plots: bool = True,
+    transfer_trials: int = TRANSFER_TRIALS,
+    on_generation: Callable[[dict], None] | None = None,
+) -> dict:
+    """Run (or, with ``resume``, continue) the model-free experiment; return the summary dict.
+
+    ``on_generation`` is called with each generation's history entry after its checkpoint is
+    written (tests raise from it to interrupt a run). The summary is also written to
+    ``<out>/summary.json``.
+    """
+    from tqdm import tqdm
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    ga_config = ga_config or default_ga_config()
+    config = run_config(seed, arena, max_leg_steps, n_targets, ga_config)
+    ck_path = out / "checkpoint.json"
+    if resume and ck_path.exists():
+        state = load_checkpoint(ck_path, KIND, config)
+        ga = GeneticAlgorithm.from_state_dict(state["ga"], np.random.default_rng())
+    else:
+        ga = GeneticAlgorithm(ga_config, np.random.default_rng(seed))
+        state = _fresh_state(ga)
+    states = set(state["world_states"])
+    transitions = {tuple(t) for t in state["transitions"]}
+    t_session = time.perf_counter()
+    wall_before = state["wall_time_s"]
+
+    def finished() -> bool:
+        best = state["best"]
+        return best is not None and best["targets_reached"] >= n_targets
+
+    bar = tqdm(total=generations_cap, initial=min(ga.generation, generations_cap), disable=not progress,
+               desc=f"model-free seed {seed}", unit="gen", dynamic_ncols=True)
+    try:
+        with Evaluator(arena, max_leg_steps, n_targets, workers) as evaluator:
+            while not finished() and ga.generation < generations_cap:
+                pop = ga.ask()
+                evals = evaluator(pop)
+                fitness = fitness_vector(evals)
+                ga.tell(fitness)
+                i = int(np.argmax(fitness))  # the same individual tell() took as best
+                best = evals[i]
+                for e in evals:
+                    states |= e.states
+                    transitions |= e.transitions
+                state["interactions"] += sum(e.steps for e in evals)
+                state["best"] = {
+                    "genome": hex_from_rows(pop[i]),
+                    "fitness": best.fitness,
+                    "targets_reached": best.targets_reached,
+                    "steps": best.steps,
+                    "crashed": best.crashed,
+                    "timed_out": best.timed_out,
+                    "final_distance_mm": best.final_distance_mm,
+                }
+                entry = {
+                    "generation": ga.generation,
+                    "best_fitness": best.fitness,
+                    "best_targets": best.targets_reached,
+                    "best_steps": best.steps,
+                    "mean_fitness": float(fitness.mean()),
+                    "interactions": state["interactions"],
+                    "world_states": len(states),
+                    "transitions": len({(t[0], t[1]) for t in transitions}),
+                    "transition_outcomes": len(transitions),
+                }
+                state["history"].append(entry)
+                state["ga"] = ga.state_dict()
+                state["world_states"] = sorted(states)
+                state["transitions"] = sorted(transitions)
+                state["wall_time_s"] = wall_before + time.perf_counter() - t_session
+                save_checkpoint(ck_path, KIND, config, state)
+                bar.update(1)
+                bar.set_postfix(targets=best.targets_reached, steps=best.steps,
+                                interactions=state["interactions"], refresh=False)
+                if on_generation is not None:
+                    on_generation(entry)
+    finally:
+        bar.close()
+
+    summary = _summary(seed, state, config, ga_config, workers, finished())
+    if transfer_trials:
+        summary["transfer"] = transfer(summary["best_genome"], arena, max_leg_steps, n_targets, seed,
+                                       transfer_trials)
+    (out / "history.json").write_text(json.dumps(state["history"], indent=1) + "\n")
+    if plots:
+        summary["figures"] = plot_results(out, state["history"], summary["best_genome"], arena,
+                                          max_leg_steps, n_targets)
+    tmp = out / "summary.json.tmp"
+    tmp.write_text(json.dumps(summary, indent=2) + "\n")
+    tmp.replace(out / "summary.json")
+    return summary
+
+
+def _summary(seed, state, config, ga_config: GAConfig, workers, reached_all) -> dict:
+    best = state["best"] or {}
+    generations = len(state["history"])
+    return {
+        "seed": int(seed),
+        "reached_all_targets": bool(reached_all),
+        "targets_reached": best.get("targets_reached", 0),
+        "generations": generations,
+        "genetic_operations": generations * ga_config.population,
+        "interactions": state["interactions"],
+        "world_states": len(state["world_states"]),
+        # The paper's transitions (at most 256 x 8 = 2048): distinct (state, motion) pairs met.
+        "transitions": len({(t[0], t[1]) for t in state["transitions"]}),
+        # Distinct observed outcomes (state, motion, next state, crashed).
+        "transition_outcomes": len(state["transitions"]),
+        "best_fitness": best.get("fitness"),
+        "best_steps": best.get("steps"),
+        "best_genome": best.get("genome"),
+        "wall_time_s": round(state["wall_time_s"], 3),
+        "workers": int(workers),
+        "max_run_steps": max_run_steps(config["max_leg_steps"], config["n_targets"]),
+        "config": config,
+        "paper": PAPER,
+    }
+
+
+# ---------------------------------------------------------------------------------------------
+# Transfer to the "real" (noisy) world
+# ---------------------------------------------------------------------------------------------
+
+
+def transfer(genome_hex: str | None, arena: str, max_leg_steps: int, n_targets: int, seed: int,
+             trials: int = TRANSFER_TRIALS) -> dict:
+    """Drive the noisy world with the best controller: targets reached before the first crash
+    (or a leg time-out), over ``trials`` noise seeds ``seed * 1000 + i``."""
+    from sim_world.course import run_course
+    from sim_world.world import DEFAULT_NOISE, World
+
+    if genome_hex is None:
+        return {}
+    table = truth_tables(rows_from_hex(genome_hex), reflex=True)
+    targets, steps, crashed = [], [], []
+    for i in range(trials):
+        world = World(_load_arena(arena), noise=DEFAULT_NOISE, seed=seed * 1000 + i)
+        res = run_course(world, table, max_leg_steps, n_targets=n_targets, stop_on_crash=True)
+        targets.append(int(res.targets_reached))
+        steps.append(int(res.steps))
+        crashed.append(bool(res.crashed))
+    return {
+        "noise": repr(DEFAULT_NOISE),
+        "noise_seeds": [seed * 1000 + i for i in range(trials)],
+        "targets_without_crash": targets,
+        "targets_without_crash_median": float(np.median(targets)),
+        "all_targets_fraction": float(np.mean([t >= n_targets for t in targets])),
+        "ended_by_crash": crashed,
+        "steps": steps,
+    }
+
+
+# ---------------------------------------------------------------------------------------------
+# Figures
+# ---------------------------------------------------------------------------------------------
+
+
+def plot_results(out: Path, history: list, genome_hex: str | None, arena: str, max_leg_steps: int,
+                 n_targets: int) -> dict:
+    """Fig. 5 (the best controller's path through the 64 legs) and Fig. 6 (steps and fitness of
+    the best individual per generation). Returns the file names written."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    files = {}
+    if history:
+        gens = [h["generation"] for h in history]
+        fig, ax1 = plt.subplots(figsize=(7, 4))
+        ax1.plot(gens, [h["best_steps"] for h in history], color="tab:blue", label="steps of the best")
+        ax1.set_xlabel("generation")
+        ax1.set_ylabel("steps (interactions) of the best", color="tab:blue")
+        ax2 = ax1.twinx()
+        ax2.plot(gens, [h["best_fitness"] for h in history], color="tab:red", label="fitness of the best")
+        ax2.set_ylabel("fitness of the best (targets + R2 + R3)", color="tab:red")
+        ax1.set_title("Model-free evolution: the best individual per generation (cf. paper Fig. 6)")
+        fig.tight_layout()
+        fig.savefig(out / "fig6_best_per_generation.png", dpi=120)
+        plt.close(fig)
+        files["fig6"] = "fig6_best_per_generation.png"
+    if genome_hex is not None:
+        from sim_world.course import run_course
+        from sim_world.world import World
+
+        world = World(_load_arena(arena))
+        table = truth_tables(rows_from_hex(genome_hex), reflex=True)
+        res = run_course(world, table, max_leg_steps, n_targets=n_targets, record=True)
+        title = (f"Best model-free controller: {res.targets_reached} targets, {res.steps} steps "
+                 "(cf. paper Fig. 5)")
+        path = out / "fig5_trajectory.png"
+        try:
+            from sim_world.render import plot_trajectory
+        except ImportError:
+            plot_trajectory = None
+        if plot_trajectory is not None:
+            plot_trajectory(world.arena, res.trajectory, path, title=title)
+        else:
+            _plot_trajectory_fallback(world.arena, res.trajectory, path, title)
+        files["fig5"] = path.name
+    return files
+
+
+def _plot_trajectory_fallback(arena, trajectory, path: Path, title: str) -> None:
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Circle, Polygon
+
+    fig, ax = plt.subplots(figsize=(6, 6))
+    for ob in arena.obstacles:
+        if ob.is_circle:
+            ax.add_patch(Circle(ob.center, ob.radius, color="0.6"))
+        else:
+            ax.add_patch(Polygon(ob.polygon, closed=True, color="0.6"))
+    ax.add_patch(Circle(arena.ball, arena.target_radius_mm, color="tab:orange", alpha=0.5))
+    xs, ys = [], []
+    for x, y, _, event in trajectory:
+        xs.append(x)
+        ys.append(y)
+        if event == "relocate":
+            ax.plot(xs[:-1], ys[:-1], lw=0.6, color="tab:blue")
+            xs, ys = [x], [y]
+        elif event == "crash":
+            ax.plot([x], [y], "x", color="red")
+    ax.plot(xs, ys, lw=0.6, color="tab:blue")
+    ax.set_xlim(0, arena.size_mm)
+    ax.set_ylim(0, arena.size_mm)
+    ax.set_aspect("equal")
+    ax.set_title(title, fontsize=9)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+# ---------------------------------------------------------------------------------------------
+# Command line
+# ---------------------------------------------------------------------------------------------
+
+
+def main(argv=None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--seed", type=int, default=1, help="GA seed (default 1)")
+    parser.add_argument("--generations-cap", type=int, default=DEFAULT_GENERATIONS_CAP,
+                        help=f"stop after this many generations (default {DEFAULT_GENERATIONS_CAP})")
+    parser.add_argument("--workers", type=int, default=1, help="evaluation processes (default 1: serial)")
+    parser.add_argument("--resume", action="store_true", help="continue from <out>/checkpoint.json")
+    parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help=f"output folder (default {DEFAULT_OUT})")
+    parser.add_argument("--arena", default=DEFAULT_ARENA, help="arena name or .json path (default 'default')")
+    parser.add_argument("--max-leg-steps", type=int, default=DEFAULT_MAX_LEG_STEPS,
+                        help=f"step limit of one leg (default {DEFAULT_MAX_LEG_STEPS})")
+    parser.add_argument("--no-plots", action="store_true", help="skip the figures")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    args = parser.parse_args(argv)
+    summary = run_offline(
+        args.seed, generations_cap=args.generations_cap, workers=args.workers, resume=args.resume,
+        out=args.out, arena=args.arena, max_leg_steps=args.max_leg_steps, progress=not args.quiet,
+        plots=not args.no_plots,
+    )
+    keys = ("seed", "reached_all_targets", "targets_reached", "generations", "genetic_operations",
+            "interactions", "world_states", "transitions", "wall_time_s")
+    for k in keys:
+        print(f"{k:22s} {summary[k]}")
+    if summary.get("transfer"):
+        t = summary["transfer"]
+        print(f"{'transfer (noisy world)':22s} targets before a crash: {t['targets_without_crash']}")
+    print(f"wrote {Path(args.out) / 'summary.json'}")
+
+
+if __name__ == "__main__":
+    main()
