@@ -380,9 +380,9 @@ def _plot_trajectory_fallback(arena, trajectory, path: Path, title: str) -> None
     fig, ax = plt.subplots(figsize=(6, 6))
     for ob in arena.obstacles:
         if ob.is_circle:
-            ax.add_patch(Circle(ob.center, ob.radius, color="0.6"))
+            ax.add_patch(Circle(ob.centre, ob.radius, color="0.6"))
         else:
-            ax.add_patch(Polygon(ob.polygon, closed=True, color="0.6"))
+            ax.add_patch(Polygon(ob.vertices, closed=True, color="0.6"))
     ax.add_patch(Circle(arena.ball, arena.target_radius_mm, color="tab:orange", alpha=0.5))
     xs, ys = [], []
     for x, y, _, event in trajectory:

@@ -1,0 +1,92 @@
+"""The off-line runner: serial == process pool, resume == uninterrupted, checkpoint checks, outputs."""
+
+import json
+
+import pytest
+
+from cosim.checkpoint import CheckpointError
+from cosim.offline import default_ga_config, main, run_offline
+
+SMALL = dict(arena="one_obstacle", max_leg_steps=80, n_targets=64, progress=False, plots=False,
+             transfer_trials=0, ga_config=default_ga_config(population=8, tournament=3))
+VOLATILE = ("wall_time_s", "workers", "figures")
+
+
+def _stable(summary):
+    return {k: v for k, v in summary.items() if k not in VOLATILE}
+
+
+def _checkpoint_state(out):
+    state = json.loads((out / "checkpoint.json").read_text())["state"]
+    state.pop("wall_time_s")
+    return state
+
+
+def test_serial_equals_process_pool(tmp_path):
+    serial = run_offline(3, generations_cap=4, workers=1, out=tmp_path / "s", **SMALL)
+    pooled = run_offline(3, generations_cap=4, workers=2, out=tmp_path / "p", **SMALL)
+    assert _stable(serial) == _stable(pooled)
+    assert _checkpoint_state(tmp_path / "s") == _checkpoint_state(tmp_path / "p")
+    assert serial["generations"] == 4 and serial["genetic_operations"] == 32
+    assert serial["interactions"] > 0 and serial["world_states"] > 0
+
+
+class Interrupt(Exception):
+    pass
+
+
+def test_resume_equals_uninterrupted(tmp_path):
+    straight = run_offline(5, generations_cap=7, out=tmp_path / "a", **SMALL)
+
+    def stop_at_3(entry):
+        if entry["generation"] == 3:
+            raise Interrupt
+
+    with pytest.raises(Interrupt):
+        run_offline(5, generations_cap=7, out=tmp_path / "b", on_generation=stop_at_3, **SMALL)
+    assert json.loads((tmp_path / "b" / "checkpoint.json").read_text())["state"]["ga"]["generation"] == 3
+    resumed = run_offline(5, generations_cap=7, out=tmp_path / "b", resume=True, **SMALL)
+    assert _stable(resumed) == _stable(straight)
+    assert _checkpoint_state(tmp_path / "a") == _checkpoint_state(tmp_path / "b")
+    history = json.loads((tmp_path / "b" / "history.json").read_text())
+    assert [h["generation"] for h in history] == list(range(1, 8))
+
+
+def test_stops_when_the_best_reaches_every_target(tmp_path):
+    cfg = dict(SMALL, arena="empty", n_targets=2)
+    summary = run_offline(1, generations_cap=200, out=tmp_path, **cfg)
+    assert summary["reached_all_targets"] and summary["targets_reached"] == 2
+    assert summary["generations"] < 200
+    # Resuming a finished run evaluates nothing more.
+    again = run_offline(1, generations_cap=200, out=tmp_path, resume=True, **cfg)
+    assert _stable(again) == _stable(summary)
+
+
+def test_resume_with_another_config_is_refused(tmp_path):
+    run_offline(2, generations_cap=1, out=tmp_path, **SMALL)
+    with pytest.raises(CheckpointError, match="seed: saved 2, now 9"):
+        run_offline(9, generations_cap=2, out=tmp_path, resume=True, **SMALL)
+    with pytest.raises(CheckpointError, match="max_leg_steps"):
+        run_offline(2, generations_cap=2, out=tmp_path, resume=True, **dict(SMALL, max_leg_steps=81))
+
+
+def test_resume_from_a_corrupt_checkpoint_is_refused(tmp_path):
+    run_offline(2, generations_cap=1, out=tmp_path, **SMALL)
+    (tmp_path / "checkpoint.json").write_text('{"format": 1, "kind": "model_free", "conf')
+    with pytest.raises(CheckpointError, match="corrupt"):
+        run_offline(2, generations_cap=2, out=tmp_path, resume=True, **SMALL)
+
+
+def test_command_line_writes_summary_figures_and_transfer(tmp_path, capsys):
+    out = tmp_path / "run"
+    main(["--seed", "4", "--generations-cap", "2", "--arena", "empty", "--max-leg-steps", "60",
+          "--out", str(out), "--quiet"])
+    summary = json.loads((out / "summary.json").read_text())
+    for key in ("interactions", "generations", "genetic_operations", "world_states", "transitions",
+                "targets_reached", "best_genome", "seed", "wall_time_s", "transfer"):
+        assert key in summary
+    assert len(summary["best_genome"]) == 238 and summary["seed"] == 4
+    assert len(summary["transfer"]["targets_without_crash"]) == 10
+    assert (out / "fig5_trajectory.png").stat().st_size > 1000
+    assert (out / "fig6_best_per_generation.png").stat().st_size > 1000
+    assert "wrote" in capsys.readouterr().out
