@@ -1,0 +1,324 @@
+"""The evaluator board (SPEC section 8): world-model RAM, state set, AND-OR array, trace engine.
+
+It computes (crashes, loops, distance) of the model-based fitness of SPEC section 7 for one
+controller, bit-exact with ``ga.evaluator``, at one trace step (one tested state) per clock.
+
+Datapath
+--------
+- ``ram``: 2^(8+3) = 2048 entries {next: 8, crash: 1, valid: 1}, address ``state * 8 + motion``
+  (``Cat(motion, state)``). One synchronous write port (the host, or the Clear sweep) and one
+  synchronous read port (the trace engine).
+- ``in_set``: the state set S as a 256-bit register (the host adds states; ``n_states`` counts).
+- ``tested``, ``trace``: 256-bit registers, the sets of the pseudo-code. ``tested`` is cleared at
+  start, ``trace`` is reloaded with a one-hot at each new trace.
+- ``pick``: a log-depth priority encoder giving the smallest state of ``in_set & ~tested``: the
+  next trace start s0, so S is walked in ascending order (SPEC pseudo-code) with no idle cycle
+  spent skipping tested states.
+- ``shadow`` / ``arch``: the controller's configuration, double-buffered like the controller
+  board's: the row-write port fills ``shadow`` at any time (also while busy), ``start`` copies it
+  (with a row written in the same cycle) into ``arch``, which drives the AND-OR array. Loading the
+  next controller therefore overlaps evaluating this one.
+
+One trace step per clock: the RAM's read address is combinational from its own registered
+output. In each ``Trace`` cycle the entry e of the state ``cur`` issued in the previous cycle is
+on ``rd.data``; the cycle decides (unknown / crash / free-space self-loop / loop / tested) whether
+to follow ``e.next`` or to start a new trace at ``pick``, runs the chosen state x through the
+reflex and the array to get its motion a, and presents address (x, a): x is tested in this cycle
+and its entry arrives in the next one. Critical path: RAM data -> trace/tested bit-select ->
+mux -> AND-OR array -> reflex -> RAM address.
+
+FSM
+---
+``Idle`` -> (start) ``Begin`` -> ``Trace`` (N cycles) -> ``Idle``; ``Idle`` -> (clear) ``Clear``
+(2048 cycles) -> ``Idle``.
+
+- ``Idle``: ``ready`` = 1. Accepts world-model writes, state additions, ``clear`` and ``start``
+  (priority: clear, then start; a write in the same cycle as start is applied before the
+  evaluation: the RAM write lands at that edge, the first read is one cycle later).
+- ``Begin``: issues the first state (smallest of S); with S empty goes straight back to ``Idle``.
+- ``Trace``: counts the entry on ``rd.data`` and issues the next state; when every state of S is
+  tested, latches the results, pulses ``done`` and returns to ``Idle``.
+- ``Clear``: writes 0 (unknown) to every RAM entry; S was emptied on entering.
+
+Cycle cost
+----------
+Evaluation: ``cycles`` = N + 1 for a model of N >= 0 states (``Begin`` + one ``Trace`` cycle per
+state of S); ``done`` pulses and ``busy`` falls N + 1 edges after the edge that samples ``start``.
+Loading 50 rows costs 50 cycles, the last of which may carry ``start``; when the rows of the next
+controller are written while this one is evaluated (overlap), a population of P controllers costs
+about P * max(N + 2, 51) cycles. Either way <= 2N + 60 per controller.
+
+Handshake
+---------
+``start`` is honoured only when ``ready`` (state ``Idle``); a start while busy is ignored, and so
+are world-model writes, state additions and ``clear`` while busy (``ready`` low). Row writes are
+always accepted (they only touch the shadow). Results (``crashes``, ``loops``, ``distance``,
+``cycles``) are result registers: they change only at the edge that ends an evaluation (the
+same edge that raises ``done`` for one cycle and lowers ``busy``) and hold until the next one
+ends, so the host may read them during the next evaluation. ``reflex_en`` is sampled at start.
+"""
+
+from __future__ import annotations
+
+from amaranth.hdl import Array, Cat, Const, Module, Mux, Signal
+from amaranth.lib import data, wiring
+from amaranth.lib.memory import Memory
+from amaranth.lib.wiring import In, Out
+
+from ga.genome import N_ROWS, ROW_BITS
+from ga.motions import (MAX_MOTION_DISTANCE_MM, MOTION_DISTANCE_MM, N_INPUTS, N_MOTIONS, N_OUTPUTS,
+                        N_STATES, OBSTACLE_MASK, REFLEX_MOTION, SECTOR_SHIFT)
+from hdl.and_or_array import AndOrArray, _check_positive
+from hdl.controller_ehw import row_addr_bits
+
+# One world-model RAM entry (SPEC section 8). valid = 0: the transition is unknown.
+ENTRY_LAYOUT = data.StructLayout({"next": N_INPUTS, "crash": 1, "valid": 1})
+RAM_DEPTH = N_STATES * N_MOTIONS  # 2^(n+3)
+COUNT_BITS = N_STATES.bit_length()  # 9: counts 0..256 (states, crashes, loops)
+DISTANCE_BITS = 16
+CYCLE_BITS = 16
+assert N_STATES * MAX_MOTION_DISTANCE_MM < 1 << DISTANCE_BITS
+
+
+def ram_address(state: int, motion: int) -> int:
+    """The RAM address of the entry (state, motion): ``state * 8 + motion``."""
+    return state * N_MOTIONS + motion
+
+
+def entry_word(next_state: int, crash: bool, valid: bool = True) -> int:
+    """A RAM entry as an integer in ENTRY_LAYOUT (next in bits 0-7, crash bit 8, valid bit 9)."""
+    return next_state | int(crash) << N_INPUTS | int(valid) << (N_INPUTS + 1)
+
+
+def _lowest_set(bits, lo: int, hi: int):
+    """(any, index - lo) of the lowest set bit of ``bits[lo:hi]`` (hi - lo a power of 2): a
+    balanced tree of 2:1 muxes, log2(hi - lo) levels deep."""
+    if hi - lo == 1:
+        return bits[lo], Const(0, 0)
+    mid = (lo + hi) // 2
+    any_lo, idx_lo = _lowest_set(bits, lo, mid)
+    any_hi, idx_hi = _lowest_set(bits, mid, hi)
+    return any_lo | any_hi, Cat(Mux(any_lo, idx_lo, idx_hi), ~any_lo)
+
+
+class EvaluatorEHW(wiring.Component):
+    """The evaluator EHW board: model-based fitness counts of one controller per run.
+
+    Parameters
+    ----------
+    k : int
+        Rows of the AND-OR array (default 50). n = 8 and m = 3 are fixed by SPEC section 4.
+
+    Ports
+    -----
+    row_addr : In(6), row_data : In(19), row_we : In(1)
+        Row-write port into the shadow configuration (as the controller board's); addresses
+        >= k are ignored. Accepted in every state.
+    model_state : In(8), model_motion : In(3), model_next : In(8), model_crash : In(1),
+    model_valid : In(1), model_we : In(1)
+        World-model write port: entry (state, motion) := {next, crash, valid} at the next edge,
+        when ``ready``. The host applies the update rule (``ga.world_model``) and writes the
+        resulting entry.
+    state_value : In(8), state_we : In(1)
+        Add ``state_value`` to S at the next edge, when ``ready`` (adding a member is harmless).
+    clear : In(1)
+        When ``ready``: empty S and sweep every RAM entry to unknown (2048 cycles, busy).
+    reflex_en : In(1)
+        Put the reflex in front of the array (SPEC section 6); sampled at start.
+    start : In(1)
+        When ``ready``: copy the shadow into the active configuration and evaluate.
+    ready : Out(1)
+        Idle: start, clear and model/state writes are accepted.
+    busy : Out(1)
+        Evaluating or clearing (= not ready).
+    done : Out(1)
+        One-cycle pulse: the result registers have just been updated.
+    crashes, loops : Out(9); distance : Out(16); cycles : Out(16)
+        Results of the last finished evaluation (``cycles`` = N + 1).
+    n_states : Out(9)
+        |S|.
+    """
+
+    def __init__(self, k: int = N_ROWS):
+        self.k = _check_positive("k", k)
+        self.row_bits = ROW_BITS
+        super().__init__({
+            "row_addr": In(row_addr_bits(self.k)),
+            "row_data": In(ROW_BITS),
+            "row_we": In(1),
+            "model_state": In(N_INPUTS),
+            "model_motion": In(N_OUTPUTS),
+            "model_next": In(N_INPUTS),
+            "model_crash": In(1),
+            "model_valid": In(1),
+            "model_we": In(1),
+            "state_value": In(N_INPUTS),
+            "state_we": In(1),
+            "clear": In(1),
+            "reflex_en": In(1),
+            "start": In(1),
+            "ready": Out(1),
+            "busy": Out(1),
+            "done": Out(1),
+            "crashes": Out(COUNT_BITS),
+            "loops": Out(COUNT_BITS),
+            "distance": Out(DISTANCE_BITS),
+            "cycles": Out(CYCLE_BITS),
+            "n_states": Out(COUNT_BITS),
+        })
+
+    def elaborate(self, platform):
+        m = Module()
+        k, W = self.k, self.row_bits
+        array = m.submodules.array = AndOrArray(n=N_INPUTS, m=N_OUTPUTS, k=k)
+        ram = m.submodules.ram = Memory(shape=ENTRY_LAYOUT, depth=RAM_DEPTH, init=[])
+        wr = ram.write_port()
+        rd = ram.read_port()  # synchronous: rd.data is the entry at last cycle's rd.addr
+
+        # -- configuration: shadow filled by the row port, copied to arch at start ----------------
+        shadow = Signal(k * W)
+        arch = Signal(k * W)
+        shadow_next = Signal(k * W)  # the shadow after this cycle's row write: what start takes
+        m.d.comb += shadow_next.eq(shadow)
+        for r in range(k):
+            with m.If(self.row_we & (self.row_addr == r)):
+                m.d.comb += shadow_next[r * W:(r + 1) * W].eq(self.row_data)
+        m.d.sync += shadow.eq(shadow_next)
+
+        # -- state set S ---------------------------------------------------------------------------
+        in_set = Signal(N_STATES)
+        tested = Signal(N_STATES)
+        trace = Signal(N_STATES)
+        add_state = self.state_we & self.ready
+        with m.If(add_state & ~in_set.bit_select(self.state_value, 1)):
+            m.d.sync += [
+                in_set.eq(in_set | (Const(1, N_STATES) << self.state_value)),
+                self.n_states.eq(self.n_states + 1),
+            ]
+
+        # -- trace engine (combinational part) -------------------------------------------------------
+        cur = Signal(N_INPUTS)  # the state whose entry is on rd.data (issued last cycle)
+        cur_motion = Signal(N_OUTPUTS)
+
+        reflex_r = Signal()
+        tracing = Signal()  # in Trace: rd.data is a live entry
+        entry = rd.data
+        s2 = entry.next
+        free_self = (s2 == cur) & ((cur & OBSTACLE_MASK) == 0)
+        moves = tracing & entry.valid & ~entry.crash  # the pseudo-code gets past (i) and (ii)
+        goes_on = moves & ~free_self
+        in_trace = trace.bit_select(s2, 1)
+        in_tested = tested.bit_select(s2, 1)
+        loop_hit = goes_on & in_trace  # (iv)
+        follow = goes_on & ~in_tested  # trace (and so tested) does not hold s2: continue there
+
+        untested = Signal(N_STATES)
+        m.d.comb += untested.eq(in_set & ~tested)
+        pick_any, pick_state = _lowest_set(untested, 0, N_STATES)
+
+        x = Signal(N_INPUTS)  # the state issued this cycle
+        motion = Signal(N_OUTPUTS)
+        issue = Signal()
+        m.d.comb += [
+            x.eq(Mux(follow, s2, pick_state)),
+            issue.eq(follow | pick_any),
+            array.arch.eq(arch),
+            array.x.eq(x),
+        ]
+        reflex_motion = Array(Const(int(a), N_OUTPUTS) for a in REFLEX_MOTION)[x[SECTOR_SHIFT:]]
+        use_reflex = reflex_r & ((x & OBSTACLE_MASK) == 0)
+        m.d.comb += [
+            motion.eq(Mux(use_reflex, reflex_motion, array.y)),
+            rd.addr.eq(Cat(motion, x)),
+        ]
+        step_distance = Array(Const(int(d), DISTANCE_BITS) for d in MOTION_DISTANCE_MM)[cur_motion]
+
+        # -- accumulators (results are latched at the end) -------------------------------------------
+        acc_crashes = Signal(COUNT_BITS)
+        acc_loops = Signal(COUNT_BITS)
+        acc_distance = Signal(DISTANCE_BITS)
+        acc_cycles = Signal(CYCLE_BITS)
+        clear_addr = Signal(range(RAM_DEPTH))
+
+        # RAM writes: the host's while idle, the Clear sweep's while clearing.
+        host_write = self.model_we & self.ready
+        m.d.comb += [
+            wr.addr.eq(Cat(self.model_motion, self.model_state)),
+            wr.data.eq(Cat(self.model_next, self.model_crash, self.model_valid)),
+            wr.en.eq(host_write),
+        ]
+
+        def issue_state(new_trace):
+            """Test x: mark it, remember it for the next cycle (its entry is read meanwhile)."""
+            onehot = Const(1, N_STATES) << x
+            m.d.sync += [
+                tested.eq(tested | onehot),
+                trace.eq(Mux(new_trace, onehot, trace | onehot)),
+                cur.eq(x),
+                cur_motion.eq(motion),
+            ]
+
+        def finish():
+            m.d.sync += [
+                self.crashes.eq(acc_crashes + (tracing & entry.valid & entry.crash)),
+                self.loops.eq(acc_loops + loop_hit),
+                self.distance.eq(acc_distance + Mux(moves, step_distance, 0)),
+                self.cycles.eq(acc_cycles + 1),
+                self.done.eq(1),
+            ]
+
+        m.d.sync += self.done.eq(0)
+        with m.FSM(init="Idle"):
+            with m.State("Idle"):
+                m.d.comb += self.ready.eq(1)
+                with m.If(self.clear):
+                    m.d.sync += [in_set.eq(0), self.n_states.eq(0), clear_addr.eq(0)]
+                    m.next = "Clear"
+                with m.Elif(self.start):
+                    m.d.sync += [
+                        arch.eq(shadow_next),
+                        reflex_r.eq(self.reflex_en),
+                        tested.eq(0),
+                        acc_crashes.eq(0),
+                        acc_loops.eq(0),
+                        acc_distance.eq(0),
+                        acc_cycles.eq(0),
+                    ]
+                    m.next = "Begin"
+
+            with m.State("Begin"):
+                # tracing = 0: no entry to count; x = pick_state (the smallest state of S).
+                m.d.comb += self.busy.eq(1)
+                m.d.sync += acc_cycles.eq(1)
+                with m.If(issue):
+                    issue_state(new_trace=1)
+                    m.next = "Trace"
+                with m.Else():  # S is empty
+                    finish()
+                    m.next = "Idle"
+
+            with m.State("Trace"):
+                m.d.comb += [self.busy.eq(1), tracing.eq(1)]
+                m.d.sync += [
+                    acc_crashes.eq(acc_crashes + (entry.valid & entry.crash)),
+                    acc_loops.eq(acc_loops + loop_hit),
+                    acc_distance.eq(acc_distance + Mux(moves, step_distance, 0)),
+                    acc_cycles.eq(acc_cycles + 1),
+                ]
+                with m.If(issue):
+                    issue_state(new_trace=~follow)
+                with m.Else():  # every state of S is tested
+                    finish()
+                    m.next = "Idle"
+
+            with m.State("Clear"):
+                m.d.comb += [
+                    self.busy.eq(1),
+                    wr.addr.eq(clear_addr),
+                    wr.data.eq(0),
+                    wr.en.eq(1),
+                ]
+                m.d.sync += clear_addr.eq(clear_addr + 1)
+                with m.If(clear_addr == RAM_DEPTH - 1):
+                    m.next = "Idle"
+        return m

@@ -1,0 +1,323 @@
+"""EvaluatorEHW (hdl/evaluator_ehw.py) three ways on the shared cases (test_evaluator_cases.py):
+
+(a) Amaranth's simulator against the reference ``ga.evaluator``, cycle budget 2N + 60 included;
+(b) cocotb on the generated Verilog in Icarus (tests/cocotb_tb/tb_evaluator_ehw.py), same cases;
+plus the handshake rules: writes while idle take effect at the next evaluation, a start (or a
+model write) while busy is ignored, clear empties the model.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+from amaranth.hdl import Shape
+from amaranth.sim import Simulator
+
+from ga.evaluator import evaluate_population
+from ga.world_model import WorldModel
+from hdl.evaluator_ehw import RAM_DEPTH, EvaluatorEHW
+from test_evaluator_cases import cases, constant_rows, random_model, specific_rows
+
+TB_DIR = Path(__file__).resolve().parent / "cocotb_tb"
+
+# Constructor and port checks build components they never elaborate.
+pytestmark = pytest.mark.filterwarnings("ignore::amaranth.hdl.UnusedElaboratable")
+
+
+class SimHost:
+    """The host side of the evaluator's ports, for an Amaranth testbench context ``ctx``.
+
+    Inputs are set before ``ctx.tick()``; the edge samples them; outputs are read after it.
+    """
+
+    def __init__(self, ctx, dut: EvaluatorEHW):
+        self.ctx, self.dut = ctx, dut
+        self.cycle = 0  # clock edges so far
+
+    async def tick(self):
+        await self.ctx.tick()
+        self.cycle += 1
+
+    def _set_entry(self, state, motion, next_state, crash, valid=1):
+        ctx, dut = self.ctx, self.dut
+        ctx.set(dut.model_state, int(state))
+        ctx.set(dut.model_motion, int(motion))
+        ctx.set(dut.model_next, int(next_state))
+        ctx.set(dut.model_crash, int(crash))
+        ctx.set(dut.model_valid, int(valid))
+        ctx.set(dut.model_we, 1)
+
+    async def write_model(self, model: WorldModel):
+        """Every valid entry and every state of S, one entry and one state per cycle (in parallel)."""
+        ctx, dut = self.ctx, self.dut
+        entries, states = model.entries(), model.states
+        for i in range(max(len(entries), len(states))):
+            assert ctx.get(dut.ready)
+            if i < len(entries):
+                self._set_entry(*entries[i])
+            if i < len(states):
+                ctx.set(dut.state_value, int(states[i]))
+                ctx.set(dut.state_we, 1)
+            await self.tick()
+            ctx.set(dut.model_we, 0)
+            ctx.set(dut.state_we, 0)
+
+    async def write_entry(self, state, motion, next_state, crash, valid=1):
+        self._set_entry(state, motion, next_state, crash, valid)
+        await self.tick()
+        self.ctx.set(self.dut.model_we, 0)
+
+    async def add_state(self, state):
+        self.ctx.set(self.dut.state_value, int(state))
+        self.ctx.set(self.dut.state_we, 1)
+        await self.tick()
+        self.ctx.set(self.dut.state_we, 0)
+
+    def results(self):
+        ctx, dut = self.ctx, self.dut
+        return (ctx.get(dut.crashes), ctx.get(dut.loops), ctx.get(dut.distance)), ctx.get(dut.cycles)
+
+    async def evaluate(self, rows, reflex=True):
+        """Load 50 rows (start with the last), wait for done. Returns (counts, cycles register,
+        clock edges from the first row write to done: the per-controller cost, loading included)."""
+        ctx, dut = self.ctx, self.dut
+        ctx.set(dut.reflex_en, int(reflex))
+        first = self.cycle
+        for r, word in enumerate(rows):
+            ctx.set(dut.row_addr, r)
+            ctx.set(dut.row_data, int(word))
+            ctx.set(dut.row_we, 1)
+            ctx.set(dut.start, int(r == len(rows) - 1))
+            await self.tick()
+        ctx.set(dut.row_we, 0)
+        ctx.set(dut.start, 0)
+        while not ctx.get(dut.done):
+            assert ctx.get(dut.busy) and not ctx.get(dut.ready)
+            await self.tick()
+        counts, cycles = self.results()
+        return counts, cycles, self.cycle - first
+
+    async def evaluate_overlapped(self, population, reflex=True):
+        """Write the rows of controller i + 1 while controller i is evaluated; start each as soon
+        as the board is ready and its rows are in. Returns ([counts], [cycles], total edges)."""
+        ctx, dut = self.ctx, self.dut
+        ctx.set(dut.reflex_en, int(reflex))
+        first = self.cycle
+        counts, cycles = [], []
+        loading, row = 0, 0  # the controller being loaded, its next row
+        while len(counts) < len(population):
+            write = loading < len(population) and row < len(population[loading])
+            if write:
+                ctx.set(dut.row_addr, row)
+                ctx.set(dut.row_data, int(population[loading][row]))
+            ctx.set(dut.row_we, int(write))
+            loaded = loading < len(population) and row >= len(population[loading]) - 1
+            start = loaded and ctx.get(dut.ready)
+            ctx.set(dut.start, int(start))
+            await self.tick()
+            if write:
+                row += 1
+            if start:
+                loading, row = loading + 1, 0
+            if ctx.get(dut.done):
+                c, n = self.results()
+                counts.append(c)
+                cycles.append(n)
+        ctx.set(dut.row_we, 0)
+        ctx.set(dut.start, 0)
+        return counts, cycles, self.cycle - first
+
+
+def run_sim(body):
+    """Run ``await body(host)`` in a fresh EvaluatorEHW under Amaranth's simulator."""
+    dut = EvaluatorEHW()
+
+    async def testbench(ctx):
+        await body(SimHost(ctx, dut))
+
+    sim = Simulator(dut)
+    sim.add_clock(1e-8)
+    sim.add_testbench(testbench)
+    sim.run()
+
+
+def reference_counts(pop, model, reflex):
+    result = evaluate_population(pop, model, reflex)
+    return [result.row(i) for i in range(len(pop))]
+
+
+def test_amaranth_sim_matches_reference_on_shared_cases():
+    seen = []
+
+    async def body(host):
+        for name, model, pop, reflex in cases():
+            await host.ctx.tick()  # one idle cycle between cases
+            host.ctx.set(host.dut.clear, 1)
+            await host.tick()
+            host.ctx.set(host.dut.clear, 0)
+            while not host.ctx.get(host.dut.ready):
+                await host.tick()
+            await host.write_model(model)
+            assert host.ctx.get(host.dut.n_states) == model.n_states, name
+            want = reference_counts(pop, model, reflex)
+            n = model.n_states
+            for i, rows in enumerate(pop):
+                counts, cycles, cost = await host.evaluate(rows, reflex)
+                assert counts == want[i], f"{name}, genome {i}: HDL {counts}, reference {want[i]}"
+                assert cycles == n + 1, f"{name}: {cycles} cycles for N = {n}"
+                assert cost <= 2 * n + 60, f"{name}: {cost} cycles per controller, N = {n}"
+                seen.append((name, n, cost))
+
+    run_sim(body)
+    assert len(seen) == sum(len(pop) for _, _, pop, _ in cases())
+
+
+def test_overlapped_loading_matches_and_hides_the_rows():
+    rng = np.random.default_rng(5)
+    model = random_model(rng, 70, 400, 0.1)
+    pop = specific_rows(rng, 6)
+    n = model.n_states
+    assert n >= 50
+
+    async def body(host):
+        await host.write_model(model)
+        counts, cycles, total = await host.evaluate_overlapped(pop)
+        assert counts == reference_counts(pop, model, True)
+        assert cycles == [n + 1] * len(pop)
+        # 50 cycles to load the first controller, then one evaluation (+1 start cycle) each.
+        assert total <= 50 + len(pop) * (n + 2), total
+
+    run_sim(body)
+
+
+def test_transitions_written_while_idle_count_at_the_next_evaluation():
+    rows = constant_rows(0)  # forward everywhere (no reflex): follows the forward transitions
+
+    async def body(host):
+        model = WorldModel()
+        model.visit(1)
+        await host.write_model(model)
+        assert (await host.evaluate(rows, reflex=False))[0] == (0, 0, 0)  # unknown transition
+        for s, s2, crash in [(1, 2, False), (2, 1, False), (2, 2, True)]:
+            # the host applies the update rule, then writes the resulting entry
+            model.observe(s, 0, s2, crash)
+            await host.write_entry(s, 0, model.next_state[s, 0], model.crash[s, 0])
+            await host.add_state(s2)
+            counts = (await host.evaluate(rows, reflex=False))[0]
+            assert counts == reference_counts(rows[None], model, False)[0], (s, s2, crash)
+        assert counts == (1, 0, 50)  # the crash now ends the trace 1 -> 2
+
+    run_sim(body)
+
+
+def test_start_and_writes_while_busy_are_ignored():
+    rng = np.random.default_rng(9)
+    model = random_model(rng, 60, 300, 0.1)
+    rows = specific_rows(rng, 1)[0]
+    n = model.n_states
+
+    async def body(host):
+        ctx, dut = host.ctx, host.dut
+        await host.write_model(model)
+        ctx.set(dut.reflex_en, 1)
+        for r, word in enumerate(rows):
+            ctx.set(dut.row_addr, r)
+            ctx.set(dut.row_data, int(word))
+            ctx.set(dut.row_we, 1)
+            ctx.set(dut.start, int(r == len(rows) - 1))
+            await host.tick()
+        ctx.set(dut.row_we, 0)
+        # While busy: hold start high, write a crash to every entry of one state, add a state,
+        # ask for a clear. All of it must be ignored.
+        victim = int(model.states[0])
+        ctx.set(dut.clear, 1)
+        ctx.set(dut.state_value, int(np.flatnonzero(~model.in_set)[0]))
+        ctx.set(dut.state_we, 1)
+        done_pulses, busy_edges = 0, 0
+        for motion in range(8 * 4):
+            host._set_entry(victim, motion % 8, victim, 1)
+            assert ctx.get(dut.busy) and not ctx.get(dut.ready)
+            await host.tick()
+            busy_edges += 1
+            done_pulses += ctx.get(dut.done)
+            if ctx.get(dut.done):
+                break
+        for name in ("start", "clear", "state_we", "model_we"):
+            ctx.set(getattr(dut, name), 0)
+        while not ctx.get(dut.done):
+            await host.tick()
+            busy_edges += 1
+        assert busy_edges == n + 1  # the repeated start did not restart the run
+        counts, cycles = host.results()
+        assert cycles == n + 1 and ctx.get(dut.n_states) == n
+        assert counts == reference_counts(rows[None], model, True)[0]
+        await host.tick()
+        assert not ctx.get(dut.done) and ctx.get(dut.ready)  # done is a one-cycle pulse
+        assert (await host.evaluate(rows))[0] == counts  # the model was not touched
+
+    run_sim(body)
+
+
+def test_clear_sweeps_the_model():
+    rng = np.random.default_rng(3)
+    model = random_model(rng, 20, 100, 0.3)
+    rows = constant_rows(3)
+
+    async def body(host):
+        ctx, dut = host.ctx, host.dut
+        await host.write_model(model)
+        assert (await host.evaluate(rows, reflex=False))[0] != (0, 0, 0)
+        ctx.set(dut.clear, 1)
+        await host.tick()
+        ctx.set(dut.clear, 0)
+        edges = 0
+        while ctx.get(dut.busy):
+            await host.tick()
+            edges += 1
+        assert edges == RAM_DEPTH and ctx.get(dut.n_states) == 0
+        for s in model.states:  # S again, but no transition: every one is unknown
+            await host.add_state(s)
+        assert (await host.evaluate(rows, reflex=False))[0] == (0, 0, 0)
+
+    run_sim(body)
+
+
+def test_constructor_and_ports():
+    with pytest.raises(ValueError, match="0"):
+        EvaluatorEHW(k=0)
+    dut = EvaluatorEHW()
+    width = {name: Shape.cast(member.shape).width for name, member in dut.signature.members.items()}
+    assert (width["row_addr"], width["row_data"], width["row_we"]) == (6, 19, 1)  # the controller's
+    assert (width["model_state"], width["model_motion"], width["model_next"]) == (8, 3, 8)
+    assert (width["crashes"], width["loops"], width["distance"], width["cycles"]) == (9, 9, 16, 16)
+
+
+def test_verilog_ports(tmp_path):
+    from hdl.generate import write_verilog
+
+    text = write_verilog("evaluator_ehw", tmp_path).read_text()
+    header = text[text.index("module evaluator_ehw("):]
+    header = header[:header.index(";")]
+    ports = set(re.findall(r"\w+", header)) - {"module", "evaluator_ehw"}
+    for name in ("clk", "rst", "row_addr", "row_data", "row_we", "model_we", "start", "busy", "done",
+                 "crashes", "loops", "distance", "cycles"):
+        assert name in ports
+
+
+@pytest.mark.cocotb
+def test_cocotb_verilog_matches_reference(tmp_path):
+    from cosim.cocotb_run import run_cocotb
+    from hdl.generate import write_verilog
+
+    src = write_verilog("evaluator_ehw", tmp_path)
+    n_tests, _ = run_cocotb(
+        sources=[src],
+        toplevel="evaluator_ehw",
+        test_module="tb_evaluator_ehw",
+        test_dir=TB_DIR,
+        build_name="evaluator_ehw",
+    )
+    assert n_tests >= 3
