@@ -1,0 +1,371 @@
+"""The robot world: a pymunk space holding the arena, a 25 cm disc robot, its IR sensors and camera.
+
+SPEC sections 4-6. One :meth:`World.step` is one *interaction*: execute one of the 8 motions, let the
+bumper decide whether it crashed (then the pose is restored), and sense the new world state.
+
+How the physics engine is used (a measured choice, see docs/world.md):
+
+* The obstacles and the four border walls are static pymunk shapes in one :class:`pymunk.Space`.
+* The robot is a kinematic pymunk body with a circle shape (the bumper). A motion moves it
+  kinematically: half the turn, the translation along the new heading, the other half of the turn
+  (the midpoint rule for a differential-drive arc). A disc turning in place sweeps nothing, so the
+  bumper test is the translation's swept disc, an
+  exact continuous collision test (no substeps, no tunnelling, no solver jitter); the swept disc
+  is a pymunk capsule (segment shape of radius R) checked with ``space.shape_query``. Stepping a
+  dynamic body through the solver would cost ~10x more per motion and gives a pose that depends on
+  contact resolution; the paper's robot simply stops and is put back.
+* The 10 IR sensors are ``segment_query_first`` rays from the rim out to 30 cm; one
+  ``point_query_nearest`` first tells whether anything is within reach at all (the common case in
+  free space costs one query instead of ten) and also how far the robot may move without a bumper
+  test.
+* Noise-free, the obstacle bits of a pose never change, so they are cached by pose.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import NamedTuple
+
+import numpy as np
+import pymunk
+
+from ga.motions import (
+    MOTION_ROTATION_DEG,
+    MOTION_TRANSLATION_MM,
+    N_MOTIONS,
+    OBSTACLE_BITS,
+    SECTOR_SHIFT,
+    X_BACK,
+    X_FRONT,
+    X_FRONT_LEFT,
+    X_FRONT_RIGHT,
+    X_LEFT,
+    X_RIGHT,
+    Sector,
+)
+from sim_world.arena import ROBOT_RADIUS_MM, Arena, Pose, load_arena
+
+IR_RANGE_MM = 300.0  # SPEC section 4: an IR bit is set by an obstacle closer than 30 cm to the rim
+# The 10 IR sensors: (angle from heading in degrees, counter-clockwise positive; the bit it sets).
+IR_SENSORS: tuple[tuple[float, int], ...] = (
+    (0.0, X_FRONT),
+    (25.0, X_FRONT),
+    (-25.0, X_FRONT),
+    (55.0, X_FRONT_LEFT),
+    (-55.0, X_FRONT_RIGHT),
+    (90.0, X_LEFT),
+    (135.0, X_LEFT),
+    (-90.0, X_RIGHT),
+    (-135.0, X_RIGHT),
+    (180.0, X_BACK),
+)
+N_IR = len(IR_SENSORS)
+SENSOR_REACH_MM = ROBOT_RADIUS_MM + IR_RANGE_MM  # from the robot's centre
+SECTOR_HALF_WIDTH_DEG = 45.0  # front = -45..+45 degrees (SPEC section 4)
+
+# Motion magnitudes, from the single source of truth in ga.motions.
+_TRANSLATION = tuple(float(t) for t in MOTION_TRANSLATION_MM)
+_ROTATION = tuple(math.radians(float(r)) for r in MOTION_ROTATION_DEG)
+
+_TWO_PI = 2.0 * math.pi
+_QUERY_FILTER = pymunk.ShapeFilter()
+_CACHE_LIMIT = 1 << 20  # poses whose noise-free obstacle bits are remembered
+
+
+def _wrap(angle: float) -> float:
+    """Angle wrapped to [-pi, pi)."""
+    return (angle + math.pi) % _TWO_PI - math.pi
+
+
+@dataclass(frozen=True)
+class Noise:
+    """Real-world imperfections (SPEC section 7, on-line method). All zero means noise-free.
+
+    translation_sd: relative standard deviation of a motion's translation (0.1 = 10 % of 5 cm).
+    rotation_sd_deg: standard deviation in degrees added to the heading change of every motion
+        (wheel slip; a straight motion drifts too).
+    ir_false_negative: probability that an IR sensor which sees an obstacle reports nothing.
+    ir_false_positive: probability that an IR sensor which sees nothing reports an obstacle.
+    """
+
+    translation_sd: float = 0.0
+    rotation_sd_deg: float = 0.0
+    ir_false_negative: float = 0.0
+    ir_false_positive: float = 0.0
+
+    def __post_init__(self):
+        for name in ("translation_sd", "rotation_sd_deg"):
+            if not getattr(self, name) >= 0:
+                raise ValueError(f"Noise.{name} must be >= 0, got {getattr(self, name)!r}")
+        for name in ("ir_false_negative", "ir_false_positive"):
+            if not 0 <= getattr(self, name) <= 1:
+                raise ValueError(f"Noise.{name} must be a probability, got {getattr(self, name)!r}")
+
+    @property
+    def is_zero(self) -> bool:
+        return not (self.translation_sd or self.rotation_sd_deg or self.ir_false_negative or self.ir_false_positive)
+
+
+# The "real world" of the on-line experiment: a few percent of motor error and rare IR errors.
+DEFAULT_NOISE = Noise(translation_sd=0.1, rotation_sd_deg=3.0, ir_false_negative=0.02, ir_false_positive=0.005)
+
+
+@dataclass(frozen=True)
+class Fault:
+    """From interaction ``at_step`` on (0 = from the start), IR bit ``bit`` (0..5) reads ``value``.
+
+    ``Fault(at_step=5000, bit=X_LEFT)`` is the paper's blinded sensor: the left bit stuck at 0.
+    """
+
+    at_step: int
+    bit: int
+    value: int = 0
+
+    def __post_init__(self):
+        if not (isinstance(self.at_step, int) and self.at_step >= 0):
+            raise ValueError(f"Fault.at_step must be an int >= 0, got {self.at_step!r}")
+        if self.bit not in range(OBSTACLE_BITS):
+            raise ValueError(f"Fault.bit must be an IR bit 0..{OBSTACLE_BITS - 1}, got {self.bit!r}")
+        if self.value not in (0, 1):
+            raise ValueError(f"Fault.value must be 0 or 1, got {self.value!r}")
+
+
+class Step(NamedTuple):
+    """The outcome of one interaction."""
+
+    state: int  # the world state observed after the motion
+    crashed: bool  # the bumper hit something; the pose was restored to before the motion
+    reached: bool  # the robot's centre is within the target radius of the ball
+    distance_mm: float  # distance from the robot's centre to the ball after the motion
+
+
+def build_space(arena: Arena) -> pymunk.Space:
+    """A pymunk space with the arena's obstacles and border walls as static shapes."""
+    space = pymunk.Space()
+    body = space.static_body
+    shapes = []
+    for ob in arena.obstacles:
+        if ob.is_circle:
+            shapes.append(pymunk.Circle(body, ob.radius, offset=ob.centre))
+        else:
+            shapes.append(pymunk.Poly(body, list(ob.vertices)))
+    L = arena.size_mm
+    corners = [(0.0, 0.0), (L, 0.0), (L, L), (0.0, L)]
+    for a, b in zip(corners, corners[1:] + corners[:1]):
+        shapes.append(pymunk.Segment(body, a, b, 0.0))
+    space.add(*shapes)
+    return space
+
+
+class World:
+    """The simulated robot in an arena. Noise-free unless ``noise`` is given; seeded by ``seed``."""
+
+    def __init__(self, arena: Arena | str | None = None, noise: Noise | None = None, faults=(), seed=None):
+        if arena is None or isinstance(arena, str):
+            arena = load_arena(arena or "default")
+        self.arena = arena
+        self.noise = None if noise is None or noise.is_zero else noise
+        self.faults = tuple(faults)
+        for f in self.faults:
+            if not isinstance(f, Fault):
+                raise TypeError(f"faults must be Fault instances, got {f!r}")
+        self.space = build_space(arena)
+        # The robot: a kinematic body and its bumper. Its pose is held in plain floats (the hot
+        # path) and copied to the body by `robot_body` when someone wants to look at it.
+        self._body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
+        self.bumper = pymunk.Circle(self._body, ROBOT_RADIUS_MM)
+        # The bumper swept along one translation: a capsule on a body fixed at the origin.
+        # (Keep a reference to its body: a pymunk shape does not keep its body alive.)
+        self._sweep_body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
+        self._sweep = pymunk.Segment(self._sweep_body, (0, 0), (1, 0), ROBOT_RADIUS_MM)
+        self._bx, self._by = arena.ball
+        self._target_r = arena.target_radius_mm
+        self._ir_dirs = tuple(
+            (math.radians(a), 1 << bit) for a, bit in IR_SENSORS
+        )
+        self._cache: dict = {}
+        self.cache_hits = 0
+        self.interactions = 0
+        self.crashes = 0
+        self.reset(seed)
+        self.reset_to_start()
+
+    # -- seeding and placement -----------------------------------------------------------------
+
+    def reset(self, seed=None) -> None:
+        """Re-seed the noise generator and zero the interaction counters (the pose is kept)."""
+        self.rng = np.random.default_rng(seed)
+        self._normals: list[float] = []
+        self._uniforms: list[float] = []
+        self.interactions = 0
+        self.crashes = 0
+
+    def place(self, pose: Pose) -> int:
+        """Put the robot at ``pose`` = (x, y, heading); returns the world state sensed there."""
+        x, y, h = (float(v) for v in pose)
+        self._x, self._y, self._h = x, y, _wrap(h)
+        self._state = self._sense()
+        return self._state
+
+    def reset_to_start(self) -> int:
+        return self.place(self.arena.start)
+
+    def relocate(self, i: int) -> int:
+        """Move the robot to the i-th relocation pose (0..63)."""
+        return self.place(self.arena.positions[i])
+
+    @property
+    def pose(self) -> Pose:
+        return (self._x, self._y, self._h)
+
+    @property
+    def robot_body(self) -> pymunk.Body:
+        """The robot's pymunk body, moved to the current pose."""
+        self._body.position = (self._x, self._y)
+        self._body.angle = self._h
+        return self._body
+
+    def state(self) -> int:
+        """The 8-bit world state observed at the current pose (sampled once per pose)."""
+        return self._state
+
+    def target_distance(self) -> float:
+        return math.hypot(self._bx - self._x, self._by - self._y)
+
+    def target_reached(self) -> bool:
+        return self.target_distance() <= self._target_r
+
+    # -- sensing -------------------------------------------------------------------------------
+
+    def _rays(self, x: float, y: float, h: float) -> int:
+        """A mask with bit k set when IR sensor k sees an obstacle (noise-free), plus the clearance."""
+        nearest = self.space.point_query_nearest((x, y), SENSOR_REACH_MM, _QUERY_FILTER)
+        if nearest is None:
+            return 0, SENSOR_REACH_MM
+        query = self.space.segment_query_first
+        mask = 0
+        r0, r1 = ROBOT_RADIUS_MM, SENSOR_REACH_MM
+        for k, (a, _) in enumerate(self._ir_dirs):
+            c, s = math.cos(h + a), math.sin(h + a)
+            if query((x + r0 * c, y + r0 * s), (x + r1 * c, y + r1 * s), 0.0, _QUERY_FILTER) is not None:
+                mask |= 1 << k
+        return mask, nearest.distance
+
+    def _ray_mask(self, x: float, y: float, h: float):
+        key = (x, y, h)
+        hit = self._cache.get(key)
+        if hit is not None:
+            self.cache_hits += 1
+            return hit
+        hit = self._rays(x, y, h)
+        if len(self._cache) >= _CACHE_LIMIT:
+            self._cache.clear()
+        self._cache[key] = hit
+        return hit
+
+    def _uniform(self) -> float:
+        if not self._uniforms:
+            self._uniforms = self.rng.random(4096).tolist()
+        return self._uniforms.pop()
+
+    def _normal(self) -> float:
+        if not self._normals:
+            self._normals = self.rng.standard_normal(4096).tolist()
+        return self._normals.pop()
+
+    def _sense(self) -> int:
+        """Sense the world state at the current pose: IR bits (noise, faults) and the sector."""
+        x, y, h = self._x, self._y, self._h
+        mask, self._clearance = self._ray_mask(x, y, h)
+        noise = self.noise
+        if noise is not None and (noise.ir_false_negative or noise.ir_false_positive):
+            fn, fp = noise.ir_false_negative, noise.ir_false_positive
+            noisy = 0
+            for k in range(N_IR):
+                seen = (mask >> k) & 1
+                if self._uniform() < (fn if seen else fp):
+                    seen ^= 1
+                noisy |= seen << k
+            mask = noisy
+        bits = 0
+        if mask:
+            for k, (_, bit) in enumerate(self._ir_dirs):
+                if (mask >> k) & 1:
+                    bits |= bit
+        for f in self.faults:
+            if self.interactions >= f.at_step:
+                bits = (bits | (1 << f.bit)) if f.value else (bits & ~(1 << f.bit))
+        return bits | (self.sector() << SECTOR_SHIFT)
+
+    def sector(self) -> int:
+        """The camera's target sector (SPEC section 4): 0 front, 1 left, 2 back, 3 right."""
+        rel = math.degrees(_wrap(math.atan2(self._by - self._y, self._bx - self._x) - self._h))
+        if -SECTOR_HALF_WIDTH_DEG <= rel < SECTOR_HALF_WIDTH_DEG:
+            return Sector.FRONT
+        if SECTOR_HALF_WIDTH_DEG <= rel < 180.0 - SECTOR_HALF_WIDTH_DEG:
+            return Sector.LEFT
+        if -180.0 + SECTOR_HALF_WIDTH_DEG <= rel < -SECTOR_HALF_WIDTH_DEG:
+            return Sector.RIGHT
+        return Sector.BACK
+
+    def ray_hits(self) -> list[tuple[float, float, float | None]]:
+        """For drawing: (sensor angle rad, reach mm from centre, hit distance from centre or None)."""
+        x, y, h = self._x, self._y, self._h
+        out = []
+        for a, _ in self._ir_dirs:
+            c, s = math.cos(h + a), math.sin(h + a)
+            p0 = (x + ROBOT_RADIUS_MM * c, y + ROBOT_RADIUS_MM * s)
+            p1 = (x + SENSOR_REACH_MM * c, y + SENSOR_REACH_MM * s)
+            info = self.space.segment_query_first(p0, p1, 0.0, _QUERY_FILTER)
+            hit = None if info is None else ROBOT_RADIUS_MM + info.alpha * IR_RANGE_MM
+            out.append((a, SENSOR_REACH_MM, hit))
+        return out
+
+    # -- motion --------------------------------------------------------------------------------
+
+    def bumper_hits(self, x0: float, y0: float, x1: float, y1: float) -> bool:
+        """True when the robot's disc, swept from (x0, y0) to (x1, y1), cuts into an obstacle or wall.
+
+        The swept disc is a pymunk capsule (a segment shape of radius R) tested with
+        ``shape_query``. (``segment_query_first`` with a radius is not usable for this: Chipmunk's
+        spatial index only visits shapes whose bounding box the bare centre line crosses, so a
+        disc moving into a wall it has not reached with its centre goes through.) Touching without
+        penetrating (distance 0) is not a crash, so a robot resting against a wall can leave it.
+        """
+        self._sweep.unsafe_set_endpoints((x0, y0), (x1, y1))
+        for info in self.space.shape_query(self._sweep):
+            for point in info.contact_point_set.points:
+                if point.distance < -1e-9:
+                    return True
+        return False
+
+    def step(self, motion: int) -> Step:
+        """Execute one motion (one interaction) and sense the result."""
+        if not 0 <= motion < N_MOTIONS:
+            raise ValueError(f"motion must be in 0..{N_MOTIONS - 1}, got {motion!r}")
+        t, r = _TRANSLATION[motion], _ROTATION[motion]
+        noise = self.noise
+        if noise is not None:
+            if noise.translation_sd:
+                t *= 1.0 + noise.translation_sd * self._normal()
+            if noise.rotation_sd_deg:
+                r += math.radians(noise.rotation_sd_deg) * self._normal()
+        x0, y0, h0 = self._x, self._y, self._h
+        hm = h0 + 0.5 * r
+        crashed = False
+        if t:
+            x1, y1 = x0 + t * math.cos(hm), y0 + t * math.sin(hm)
+            # Far from everything (clearance known from sensing) no bumper test is needed.
+            if self._clearance <= ROBOT_RADIUS_MM + abs(t) + 1e-6:
+                crashed = self.bumper_hits(x0, y0, x1, y1)
+        else:
+            x1, y1 = x0, y0
+        self.interactions += 1
+        if crashed:
+            self.crashes += 1
+        else:
+            self._x, self._y, self._h = x1, y1, _wrap(h0 + r)
+        self._state = self._sense()
+        d = math.hypot(self._bx - self._x, self._by - self._y)
+        return Step(self._state, crashed, d <= self._target_r, d)
