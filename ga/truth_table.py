@@ -5,6 +5,11 @@ split in two bytes (literals of x0..x3 and of x4..x7); a precomputed table maps 
 256-bit set of states where every connected literal of that byte holds, so a row's firing set is
 two table look-ups and an AND, and each output is an OR over rows. No Python loop over rows or
 states.
+
+`truth_tables` works one 64-state word at a time (4 words), with the byte tables stored
+word-major, so each look-up and each OR over the 50 rows runs over contiguous (P, 50) arrays:
+about 2x faster than building the (P, 50, 4) firing sets and reducing over the middle axis
+(500 random genomes: 1.5 ms against 3.3 ms, `make bench`).
 """
 
 from __future__ import annotations
@@ -36,6 +41,9 @@ def _byte_tables() -> tuple[np.ndarray, np.ndarray]:
 
 
 _BYTE_TABLES = _byte_tables()
+# The same tables word-major, (2, 4, 256): _WORD_TABLES[half, w][code] is word w of the set.
+_WORD_TABLES = np.ascontiguousarray(_BYTE_TABLES.transpose(0, 2, 1))
+_OUTPUT_SHIFTS = OUTPUT_SHIFT + np.arange(N_OUTPUTS, dtype=np.uint32)
 
 
 def firing_sets(rows) -> np.ndarray:
@@ -54,13 +62,19 @@ def truth_tables(rows, reflex: bool = True) -> np.ndarray:
     rows = validate_rows(rows)
     single = rows.ndim == 1
     pop = rows[None] if single else rows
-    fires = firing_sets(pop)  # (P, 50, 4)
+    lo = pop & 0xFF
+    hi = (pop >> 8) & 0xFF
+    # drives[j]: all-ones where the row drives y_j, else 0 (P, 50) -- an AND selects the rows.
+    drives = [np.uint64(0) - ((pop >> shift) & 1).astype(np.uint64) for shift in _OUTPUT_SHIFTS]
+    y = np.empty((pop.shape[0], N_OUTPUTS, _WORDS), dtype=np.uint64)
+    for w in range(_WORDS):
+        fires_w = _WORD_TABLES[0, w][lo] & _WORD_TABLES[1, w][hi]  # (P, 50): states 64w..64w+63
+        for j in range(N_OUTPUTS):
+            y[:, j, w] = np.bitwise_or.reduce(fires_w & drives[j], axis=-1)
+    bits = np.unpackbits(y.view(np.uint8), axis=-1, bitorder="little")  # (P, 3, 256)
     motions = np.zeros((pop.shape[0], N_STATES), dtype=np.uint8)
     for j in range(N_OUTPUTS):
-        drives = ((pop >> (OUTPUT_SHIFT + j)) & 1).astype(bool)  # (P, 50)
-        yj = np.bitwise_or.reduce(np.where(drives[..., None], fires, np.uint64(0)), axis=1)
-        bits = np.unpackbits(yj.view(np.uint8), axis=-1, bitorder="little")  # (P, 256)
-        motions |= bits << j
+        motions |= bits[:, j] << j
     if reflex:
         motions[:, REFLEX_STATES] = REFLEX_TABLE[REFLEX_STATES]
     return motions[0] if single else motions
