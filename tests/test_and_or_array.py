@@ -1,9 +1,12 @@
+# amaranth: UnusedElaboratable=no
 """AndOrArray (hdl/and_or_array.py) against the reference model, three ways on the shared vectors.
 
 (a) Amaranth's simulator, every one of the 256 inputs of every shared genome;
 (b) cocotb on the generated Verilog in Icarus (tests/cocotb_tb/tb_and_or_array.py);
 plus the Verilog port-list contract of SPEC section 8 and the constructor's checks.
 (The reference against a naive model written from SPEC section 3 is in test_truth_table.py.)
+The first line silences Amaranth's UnusedElaboratable warning for this file: the constructor
+and port checks build components they never elaborate.
 """
 
 from __future__ import annotations
@@ -22,9 +25,6 @@ from ga.truth_table import truth_tables
 from hdl.and_or_array import AndOrArray
 
 TB_DIR = Path(__file__).resolve().parent / "cocotb_tb"
-
-# Constructor and port checks build components they never elaborate.
-pytestmark = pytest.mark.filterwarnings("ignore::amaranth.hdl.UnusedElaboratable")
 
 
 def simulate_truth_tables(dut: AndOrArray, population: np.ndarray) -> np.ndarray:
