@@ -30,7 +30,9 @@ mux -> AND-OR array -> reflex -> RAM address.
 FSM
 ---
 ``Idle`` -> (start) ``Begin`` -> ``Trace`` (N cycles) -> ``Idle``; ``Idle`` -> (clear) ``Clear``
-(2048 cycles) -> ``Idle``.
+(2048 cycles) -> ``Idle``. Reset enters ``Boot`` -> ``Clear``: the RAM is not a register (a
+reset does not touch its contents), so a reset board sweeps it and is ready 2049 cycles after
+reset with an empty model (S empty, every entry unknown). Wait for ``ready`` after reset.
 
 - ``Idle``: ``ready`` = 1. Accepts world-model writes, state additions, ``clear`` and ``start``
   (priority: clear, then start; a write in the same cycle as start is applied before the
@@ -268,7 +270,15 @@ class EvaluatorEHW(wiring.Component):
             ]
 
         m.d.sync += self.done.eq(0)
-        with m.FSM(init="Idle"):
+        with m.FSM(init="Boot"):
+            with m.State("Boot"):
+                # After reset: sweep the RAM, so that a reset board holds an empty model. (A state
+                # of its own, so that fsm_state changes after reset: Icarus never evaluates the
+                # generated `always @*` blocks of a register that keeps its initial value.)
+                m.d.comb += self.busy.eq(1)
+                m.d.sync += clear_addr.eq(0)
+                m.next = "Clear"
+
             with m.State("Idle"):
                 m.d.comb += self.ready.eq(1)
                 with m.If(self.clear):

@@ -50,6 +50,10 @@ class SimHost:
         ctx.set(dut.model_valid, int(valid))
         ctx.set(dut.model_we, 1)
 
+    async def wait_ready(self):
+        while not self.ctx.get(self.dut.ready):
+            await self.tick()
+
     async def write_model(self, model: WorldModel):
         """Every valid entry and every state of S, one entry and one state per cycle (in parallel)."""
         ctx, dut = self.ctx, self.dut
@@ -136,7 +140,9 @@ def run_sim(body):
     dut = EvaluatorEHW()
 
     async def testbench(ctx):
-        await body(SimHost(ctx, dut))
+        host = SimHost(ctx, dut)
+        await host.wait_ready()  # after reset the board sweeps its RAM (2048 cycles)
+        await body(host)
 
     sim = Simulator(dut)
     sim.add_clock(1e-8)
@@ -158,8 +164,7 @@ def test_amaranth_sim_matches_reference_on_shared_cases():
             host.ctx.set(host.dut.clear, 1)
             await host.tick()
             host.ctx.set(host.dut.clear, 0)
-            while not host.ctx.get(host.dut.ready):
-                await host.tick()
+            await host.wait_ready()
             await host.write_model(model)
             assert host.ctx.get(host.dut.n_states) == model.n_states, name
             want = reference_counts(pop, model, reflex)
