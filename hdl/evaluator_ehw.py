@@ -72,6 +72,7 @@ from ga.motions import (MAX_MOTION_DISTANCE_MM, MOTION_DISTANCE_MM, N_INPUTS, N_
                         N_STATES, OBSTACLE_MASK, REFLEX_MOTION, SECTOR_SHIFT)
 from hdl.and_or_array import AndOrArray, _check_positive
 from hdl.controller_ehw import row_addr_bits
+from ga.world_model import WorldModel
 
 # One world-model RAM entry (SPEC section 8). valid = 0: the transition is unknown.
 ENTRY_LAYOUT = data.StructLayout({"next": N_INPUTS, "crash": 1, "valid": 1})
@@ -332,3 +333,160 @@ class EvaluatorEHW(wiring.Component):
                 with m.If(clear_addr == RAM_DEPTH - 1):
                     m.next = "Idle"
         return m
+
+
+# -- host side, for Amaranth's simulator -----------------------------------------------------------
+
+
+class EvaluatorSimHost:
+    """The host side of the evaluator's ports in Amaranth's simulator (testbench context ``ctx``):
+    the protocol of the module docstring as coroutines. Inputs are set before ``ctx.tick()``, the
+    edge samples them, outputs are read after it; ``cycle`` counts the edges.
+    """
+
+    def __init__(self, ctx, dut):
+        self.ctx, self.dut = ctx, dut
+        self.cycle = 0  # clock edges so far
+
+    async def tick(self):
+        await self.ctx.tick()
+        self.cycle += 1
+
+    def set_entry(self, state, motion, next_state, crash, valid=1):
+        ctx, dut = self.ctx, self.dut
+        ctx.set(dut.model_state, int(state))
+        ctx.set(dut.model_motion, int(motion))
+        ctx.set(dut.model_next, int(next_state))
+        ctx.set(dut.model_crash, int(crash))
+        ctx.set(dut.model_valid, int(valid))
+        ctx.set(dut.model_we, 1)
+
+    async def wait_ready(self):
+        while not self.ctx.get(self.dut.ready):
+            await self.tick()
+
+    async def write_model(self, model: WorldModel):
+        """Every valid entry and every state of S, one entry and one state per cycle (in parallel)."""
+        ctx, dut = self.ctx, self.dut
+        entries, states = model.entries(), model.states
+        for i in range(max(len(entries), len(states))):
+            assert ctx.get(dut.ready)
+            if i < len(entries):
+                self.set_entry(*entries[i])
+            if i < len(states):
+                ctx.set(dut.state_value, int(states[i]))
+                ctx.set(dut.state_we, 1)
+            await self.tick()
+            ctx.set(dut.model_we, 0)
+            ctx.set(dut.state_we, 0)
+
+    async def write_entry(self, state, motion, next_state, crash, valid=1):
+        self.set_entry(state, motion, next_state, crash, valid)
+        await self.tick()
+        self.ctx.set(self.dut.model_we, 0)
+
+    async def observe(self, model: WorldModel, state, motion, next_state, crashed):
+        """Apply one observation to the host's mirror ``model`` (SPEC section 7 rule, in
+        ``ga.world_model``) and write the resulting entry and both states: 2 cycles, when ready."""
+        model.observe(state, motion, next_state, crashed)
+        ctx, dut = self.ctx, self.dut
+        self.set_entry(state, motion, model.next_state[state, motion], model.crash[state, motion])
+        ctx.set(dut.state_value, int(state))
+        ctx.set(dut.state_we, 1)
+        await self.tick()
+        ctx.set(dut.model_we, 0)
+        ctx.set(dut.state_value, int(next_state))
+        await self.tick()
+        ctx.set(dut.state_we, 0)
+
+    async def add_state(self, state):
+        self.ctx.set(self.dut.state_value, int(state))
+        self.ctx.set(self.dut.state_we, 1)
+        await self.tick()
+        self.ctx.set(self.dut.state_we, 0)
+
+    def results(self):
+        ctx, dut = self.ctx, self.dut
+        return (ctx.get(dut.crashes), ctx.get(dut.loops), ctx.get(dut.distance)), ctx.get(dut.cycles)
+
+    async def evaluate(self, rows, reflex=True):
+        """Load 50 rows (start with the last), wait for done. Returns (counts, cycles register,
+        clock edges from the first row write to done: the per-controller cost, loading included)."""
+        ctx, dut = self.ctx, self.dut
+        ctx.set(dut.reflex_en, int(reflex))
+        first = self.cycle
+        for r, word in enumerate(rows):
+            ctx.set(dut.row_addr, r)
+            ctx.set(dut.row_data, int(word))
+            ctx.set(dut.row_we, 1)
+            ctx.set(dut.start, int(r == len(rows) - 1))
+            await self.tick()
+        ctx.set(dut.row_we, 0)
+        ctx.set(dut.start, 0)
+        while not ctx.get(dut.done):
+            assert ctx.get(dut.busy) and not ctx.get(dut.ready)
+            await self.tick()
+        counts, cycles = self.results()
+        return counts, cycles, self.cycle - first
+
+    async def evaluate_overlapped(self, population, reflex=True):
+        """Write the rows of controller i + 1 while controller i is evaluated; start each as soon
+        as the board is ready and its rows are in. Returns ([counts], [cycles], total edges)."""
+        ctx, dut = self.ctx, self.dut
+        ctx.set(dut.reflex_en, int(reflex))
+        first = self.cycle
+        counts, cycles = [], []
+        loading, row = 0, 0  # the controller being loaded, its next row
+        while len(counts) < len(population):
+            write = loading < len(population) and row < len(population[loading])
+            if write:
+                ctx.set(dut.row_addr, row)
+                ctx.set(dut.row_data, int(population[loading][row]))
+            ctx.set(dut.row_we, int(write))
+            loaded = loading < len(population) and row >= len(population[loading]) - 1
+            start = loaded and ctx.get(dut.ready)
+            ctx.set(dut.start, int(start))
+            await self.tick()
+            if write:
+                row += 1
+            if start:
+                loading, row = loading + 1, 0
+            if ctx.get(dut.done):
+                c, n = self.results()
+                counts.append(c)
+                cycles.append(n)
+        ctx.set(dut.row_we, 0)
+        ctx.set(dut.start, 0)
+        return counts, cycles, self.cycle - first
+
+
+def simulate_population(model, population, reflex: bool = True, overlap: bool = True):
+    """Evaluate ``population`` (P, 50) on ``model`` (a ``ga.world_model.WorldModel``) in a fresh
+    EvaluatorEHW under Amaranth's simulator. Returns (counts [(crashes, loops, distance)] per
+    controller, cycles register per controller, clock cycles from the first row written to the
+    last done: the cost of the population, loading included)."""
+    from amaranth.sim import Simulator
+
+    dut = EvaluatorEHW()
+    out = {}
+
+    async def testbench(ctx):
+        host = EvaluatorSimHost(ctx, dut)
+        await host.wait_ready()
+        await host.write_model(model)
+        if overlap:
+            out["result"] = await host.evaluate_overlapped(population, reflex)
+        else:
+            counts, cycles, total = [], [], 0
+            for rows in population:
+                c, n, cost = await host.evaluate(rows, reflex)
+                counts.append(c)
+                cycles.append(n)
+                total += cost
+            out["result"] = counts, cycles, total
+
+    sim = Simulator(dut)
+    sim.add_clock(1e-8)
+    sim.add_testbench(testbench)
+    sim.run()
+    return out["result"]
