@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import os
 import shutil
-import sys
 from pathlib import Path
 from typing import Mapping, Sequence
 
@@ -64,24 +63,23 @@ def run_cocotb(
     env.update(extra_env or {})
     results = build_dir / f"results_{test_module}.xml"
     results.unlink(missing_ok=True)
-    runner.test(
-        test_module=test_module,
-        hdl_toplevel=toplevel,
-        build_dir=build_dir,
-        test_dir=test_dir,
-        testcase=testcase,
-        extra_env=env,
-        waves=waves,
-        timescale=("1ns", "1ps"),
-        results_xml=str(results),
-    )
+    try:
+        runner.test(
+            test_module=test_module,
+            hdl_toplevel=toplevel,
+            build_dir=build_dir,
+            test_dir=test_dir,
+            testcase=testcase,
+            extra_env=env,
+            waves=waves,
+            timescale=("1ns", "1ps"),
+            results_xml=str(results),
+        )
+    except SystemExit as exc:  # cocotb_tools exits when a test fails under pytest
+        raise CocotbFailure(f"cocotb tests failed in {test_module!r} on {toplevel!r} ({results})") from exc
     n_tests, n_failed = get_results(results)
     if n_tests == 0:
         raise CocotbFailure(f"cocotb ran no test from {test_module!r} on {toplevel!r}")
     if n_failed:
         raise CocotbFailure(f"{n_failed} of {n_tests} cocotb tests failed in {test_module!r} ({results})")
     return n_tests, results
-
-
-def python_executable() -> str:
-    return sys.executable
