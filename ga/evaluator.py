@@ -17,10 +17,12 @@ Two implementations that must agree exactly:
      round it (every node continues) and closes it (s2 in trace), and a later trace stops on a
      tested node before closing it again. A self-loop with obstacle bits is a cycle of length 1.
 
-  Cycles are counted by pointer doubling on the graph restricted to S plus a sink node (every
-  non-continuing state points to the sink): after ceil(log2(N + 1)) squarings, f^L maps every
-  node onto its cycle (L >= N + 1 steps), the image of f^L is the set of cyclic nodes, and a
-  cyclic node is counted when it is the smallest of its cycle (the running minimum over L steps).
+  Cycles are counted by pointer doubling, for the whole population at once, on the graph of the
+  continuing (individual, state) pairs plus one shared sink (a continuing state whose successor
+  does not continue points to the sink). After ceil(log2(N + 1)) squarings f^L (L >= N + 1) maps
+  every node onto its cycle, so the image of f^L is the set of cyclic nodes; a cyclic node is
+  counted when it is the smallest node of its cycle (the running minimum over L steps). The only
+  Python loop is over those ~log2(N) rounds.
 """
 
 from __future__ import annotations
@@ -138,40 +140,47 @@ def evaluate_tables(tables, model: WorldModel) -> EvalResult:
     if n == 0 or pop == 0:
         zeros = np.zeros(pop, dtype=np.int64)
         return EvalResult(zeros, zeros.copy(), zeros.copy())
-    a = tables[:, states].astype(np.intp)  # (P, N) motion in each state of S
-    # One gather from the packed table: bit 9 valid, bit 8 crash, bits 0-7 next state.
-    packed = (model.valid.astype(np.int32) << 9) | (model.crash.astype(np.int32) << 8) | model.next_state
-    entry = packed.ravel()[states[None, :] * N_MOTIONS + a]  # (P, N)
-    known = entry >= 1 << 9
-    crashed = (entry & (1 << 8)) != 0
-    nxt = entry & 0xFF
-    ok = known & ~crashed
-    crashes = crashed.sum(axis=1, dtype=np.int64)  # a crash entry is always valid
-    distance = (MOTION_DISTANCE_MM[a] * ok).sum(axis=1, dtype=np.int64)
-
-    # Functional graph on flat node ids p (N + 1) + i: i = 0..N-1 the positions in S, i = N the
-    # individual's sink. Non-continuing states point to the sink, the sink to itself.
-    width = n + 1
-    index_of = np.full(N_STATES, n, dtype=np.intp)
+    # Per-entry tables of this model (256 x 8, cheap), then one flat index per (individual, state).
+    index_of = np.full(N_STATES, n, dtype=np.intp)  # position in S; n = the sink
     index_of[states] = np.arange(n)
-    free_self = (nxt == states[None, :]) & ((states & OBSTACLE_MASK) == 0)[None, :]
-    continuing = ok & ~free_self
-    base = (np.arange(pop, dtype=np.intp) * width)[:, None]
-    succ = np.empty((pop, width), dtype=np.intp)
-    succ[:, :n] = np.where(continuing, index_of[nxt], n)
-    succ[:, n] = n
-    succ = (succ + base).ravel()
-    node = np.arange(pop * width, dtype=np.intp)
-    low = node.copy()  # the smallest node id on the path window (same individual: same base)
-    rounds = int(np.ceil(np.log2(width)))
+    moves = model.valid & ~model.crash  # the pseudo-code gets past (i) and (ii)
+    free_self = (model.next_state == np.arange(N_STATES)[:, None]) & (
+        (np.arange(N_STATES) & OBSTACLE_MASK) == 0)[:, None]
+    # Packed per entry: successor position (bits 0-8), crash (bit 9), distance covered (10 and up).
+    successor = np.where(moves & ~free_self, index_of[model.next_state], n)
+    step_distance = np.where(moves, MOTION_DISTANCE_MM[None, :], 0)
+    packed = (successor | (model.crash.astype(np.intp) << 9) | (step_distance << 10)).ravel()
+    flat = states[None, :] * N_MOTIONS + np.take(tables, states, axis=1)  # (P, N) entry per state
+    entry = np.take(packed, flat)
+    crashes = ((entry >> 9) & 1).sum(axis=1, dtype=np.int64)
+    distance = (entry >> 10).sum(axis=1, dtype=np.int64)
+    succ_local = entry & 0x1FF  # (P, N): position in S of the successor, or n (the sink)
+
+    # Functional graph of the continuing states of every individual at once: node ids 0..C-1 for
+    # the C continuing (individual, state) pairs, C for one shared sink. A continuing state whose
+    # successor does not continue points to the sink (a trace stops there: no cycle through it).
+    succ_flat = succ_local.ravel()
+    continuing = succ_flat != n
+    count = int(continuing.sum())
+    if count == 0:
+        return EvalResult(crashes, np.zeros(pop, dtype=np.int64), distance)
+    node_of = np.cumsum(continuing) - 1  # flat position p N + i -> node id (where continuing)
+    owner = np.repeat(np.arange(pop, dtype=np.intp), n)[continuing]  # individual of each node
+    target = owner * n + succ_flat[continuing]  # flat position of each node's successor
+    succ = np.empty(count + 1, dtype=np.intp)
+    succ[:count] = np.where(np.take(continuing, target), np.take(node_of, target), count)
+    succ[count] = count
+    node = np.arange(count + 1, dtype=np.intp)
+    low = node.copy()  # the smallest node id on the path window (a cycle stays in one individual)
+    rounds = int(np.ceil(np.log2(n + 1)))
     for _ in range(rounds):  # window doubles: 1, 2, 4, ... >= N + 1 steps
-        low = np.minimum(low, low[succ])
-        succ = succ[succ]
-    # succ = f^L with L >= N + 1: every node now sits on its cycle (or at its sink).
-    cyclic = np.zeros(pop * width, dtype=bool)
+        np.minimum(low, np.take(low, succ), out=low)
+        succ = np.take(succ, succ)
+    # succ = f^L with L >= N + 1: every node now sits on its cycle (or at the sink).
+    cyclic = np.zeros(count + 1, dtype=bool)
     cyclic[succ] = True
-    heads = (cyclic & (low == node)).reshape(pop, width)
-    loops = heads[:, :n].sum(axis=1, dtype=np.int64)
+    heads = cyclic[:count] & (low[:count] == node[:count])
+    loops = np.bincount(owner[heads], minlength=pop).astype(np.int64)
     return EvalResult(crashes, loops, distance)
 
 
