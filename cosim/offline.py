@@ -403,6 +403,39 @@ def _plot_trajectory_fallback(arena, trajectory, path: Path, title: str) -> None
 
 
 # ---------------------------------------------------------------------------------------------
+# Several seeds: the table beside the paper's row
+# ---------------------------------------------------------------------------------------------
+
+TABLE_KEYS = ("generations", "interactions", "world_states", "transitions", "genetic_operations")
+
+
+def seeds_table(summaries: list[dict]) -> str:
+    """A Markdown table: one row per run, then median [min, max], then the paper's row."""
+    head = ["seed", "reached 64", *TABLE_KEYS, "wall time (s)", "noisy world: targets before a crash"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for s in summaries:
+        t = s.get("transfer", {}).get("targets_without_crash", [])
+        lines.append("| " + " | ".join([str(s["seed"]), "yes" if s["reached_all_targets"] else
+                                        f"no ({s['targets_reached']})", *(f"{s[k]:,}" for k in TABLE_KEYS),
+                                        f"{s['wall_time_s']:.0f}", f"median {np.median(t):g} of {len(t)}" if t
+                                        else "-"]) + " |")
+    if summaries:
+        cells = []
+        for k in TABLE_KEYS:
+            v = [s[k] for s in summaries]
+            cells.append(f"{np.median(v):,.0f} [{min(v):,}, {max(v):,}]")
+        wall = [s["wall_time_s"] for s in summaries]
+        t = [x for s in summaries for x in s.get("transfer", {}).get("targets_without_crash", [])]
+        reached = sum(s["reached_all_targets"] for s in summaries)
+        lines.append("| " + " | ".join([f"median [range] of {len(summaries)}", f"{reached}/{len(summaries)}",
+                                        *cells, f"{np.median(wall):.0f} [{min(wall):.0f}, {max(wall):.0f}]",
+                                        f"median {np.median(t):g} [{min(t)}, {max(t)}]" if t else "-"]) + " |")
+    lines.append("| " + " | ".join(["paper", "yes", *(f"{PAPER[k]:,}" for k in TABLE_KEYS), "-",
+                                    "\"works well\""]) + " |")
+    return "\n".join(lines) + "\n"
+
+
+# ---------------------------------------------------------------------------------------------
 # Command line
 # ---------------------------------------------------------------------------------------------
 
@@ -421,7 +454,12 @@ def main(argv=None) -> None:
                         help=f"step limit of one leg (default {DEFAULT_MAX_LEG_STEPS})")
     parser.add_argument("--no-plots", action="store_true", help="skip the figures")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    parser.add_argument("--table", nargs="+", type=Path, metavar="SUMMARY",
+                        help="print the Markdown table of these summary.json files and exit")
     args = parser.parse_args(argv)
+    if args.table:
+        print(seeds_table([json.loads(p.read_text()) for p in args.table]), end="")
+        return
     summary = run_offline(
         args.seed, generations_cap=args.generations_cap, workers=args.workers, resume=args.resume,
         out=args.out, arena=args.arena, max_leg_steps=args.max_leg_steps, progress=not args.quiet,
