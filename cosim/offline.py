@@ -208,7 +208,7 @@ def run_offline(
                 pop = ga.ask()
                 evals = evaluator(pop)
                 fitness = fitness_vector(evals)
-                ga.tell(fitness)
+                ga.tell(fitness, failures=[e.failure_state for e in evals])
                 i = int(np.argmax(fitness))  # the same individual tell() took as best
                 best = evals[i]
                 for e in evals:

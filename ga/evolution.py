@@ -25,6 +25,7 @@ import numpy as np
 
 from ga import operators
 from ga.genome import N_ROWS, ROW_DTYPE, hex_from_rows, rows_from_hex, validate_rows
+from ga.motions import REFLEX_TABLE
 
 STATE_FORMAT = 1  # bump when the layout of state_dict changes
 
@@ -46,6 +47,9 @@ class GAConfig:
     output_rate: float = 0.004  # per output bit: 150 per genome -> 0.6 per child
     switch_rate: float = 0.01  # per row: 0.5 per child
     replace_rate: float = 0.005  # per row: a fresh random term, 0.25 per child
+    # Per child: if its first parent reported a failure state (tell(..., failures=)), change the
+    # child's motion there (ga.operators.avoid_state_motion). 0 = the plain GA.
+    directed_rate: float = 0.0
     literal_p: float = operators.DEFAULT_LITERAL_P  # connected-literal probability of new terms
     off_p: float = operators.DEFAULT_OFF_P  # fraction of off rows in the initial population
 
@@ -61,7 +65,7 @@ class GAConfig:
                 f"crossover must be one of {sorted(operators.CROSSOVERS)}, got {self.crossover!r}"
             )
         for name in ("crossover_rate", "literal_rate", "output_rate", "switch_rate", "replace_rate",
-                     "literal_p", "off_p"):
+                     "directed_rate", "literal_p", "off_p"):
             value = getattr(self, name)
             if not 0.0 <= value <= 1.0:
                 raise ValueError(f"{name} must be in [0, 1], got {value!r}")
@@ -98,9 +102,11 @@ class GeneticAlgorithm:
         """The population to evaluate now: (population, 50) uint32 (a copy)."""
         return self._population.copy()
 
-    def tell(self, fitness) -> None:
+    def tell(self, fitness, failures=None) -> None:
         """Take the fitness of the population given by `ask` and breed the next generation.
 
+        ``failures`` (optional, one per individual): the world state where the individual failed
+        (crashed or got stuck), or None; used by the directed mutation (``directed_rate``).
         ``best_rows`` / ``best_fitness`` become the best of this evaluated generation (with
         elitism and a deterministic fitness, also the best ever).
         """
@@ -110,15 +116,17 @@ class GeneticAlgorithm:
             raise ValueError(f"expected {cfg.population} fitness values, got shape {fitness.shape!r}")
         if not np.isfinite(fitness).all():
             raise ValueError(f"fitness must be finite, got {fitness[~np.isfinite(fitness)][:3]!r}")
+        if failures is not None and len(failures) != cfg.population:
+            raise ValueError(f"expected {cfg.population} failure states, got {len(failures)!r}")
         pop = self._population
         order = operators.elite(fitness, max(cfg.elitism, 1))
         self.best_rows = pop[order[0]].copy()
         self.best_fitness = float(fitness[order[0]])
         self.last_fitness = fitness.copy()
-        self._population = self.breed(pop, fitness)
+        self._population = self.breed(pop, fitness, failures)
         self.generation += 1
 
-    def breed(self, pop: np.ndarray, fitness: np.ndarray) -> np.ndarray:
+    def breed(self, pop: np.ndarray, fitness: np.ndarray, failures=None) -> np.ndarray:
         """The next population from an evaluated one (elites first, then the offspring)."""
         cfg = self.config
         rng = self.rng
@@ -135,6 +143,13 @@ class GeneticAlgorithm:
             rng, children, cfg.literal_rate, cfg.output_rate, cfg.switch_rate, cfg.replace_rate,
             cfg.literal_p,
         )
+        if failures is not None and cfg.directed_rate > 0:
+            directed = rng.random(n) < cfg.directed_rate
+            for i in np.flatnonzero(directed):
+                state = failures[parents[i, 0]]
+                # The reflex fixes the motion of obstacle-free states: the array cannot change it.
+                if state is not None and REFLEX_TABLE[int(state)] < 0:
+                    children[i] = operators.avoid_state_motion(rng, children[i], int(state))
         return np.concatenate([elites, children]).astype(ROW_DTYPE)
 
     def replace(self, index: int, rows) -> None:

@@ -59,6 +59,7 @@ class Evaluation:
     final_distance_mm: float
     states: frozenset  # world states met
     transitions: frozenset  # (state, motion, next state, crashed) met
+    failure_state: int | None = None  # the state the run ended in, if it crashed or got stuck
 
 
 def evaluate(world, rows, max_leg_steps: int, n_targets: int = N_TARGETS, reflex: bool = True) -> Evaluation:
@@ -70,6 +71,9 @@ def evaluate(world, rows, max_leg_steps: int, n_targets: int = N_TARGETS, reflex
         raise ValueError(f"evaluate takes one genome of shape (50,), got {rows.shape!r}")
     table = truth_tables(rows, reflex=reflex)
     res = run_course(world, table, max_leg_steps, n_targets=n_targets)
+    # After a crash the pose is restored, so the state now is the one whose motion crashed; after
+    # a time-out it is a state of the loop the robot was caught in.
+    failed = res.crashed or res.timed_out
     fitness = model_free_fitness(
         res.targets_reached, res.final_distance_mm, world.arena.size_mm, res.steps,
         max_run_steps(max_leg_steps, n_targets),
@@ -83,6 +87,7 @@ def evaluate(world, rows, max_leg_steps: int, n_targets: int = N_TARGETS, reflex
         final_distance_mm=float(res.final_distance_mm),
         states=frozenset(int(s) for s in res.states),
         transitions=frozenset(tuple(int(v) for v in t) for t in res.transitions),
+        failure_state=int(world.state()) if failed else None,
     )
 
 

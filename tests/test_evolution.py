@@ -96,3 +96,23 @@ def test_config_and_tell_checks():
     ga = GeneticAlgorithm(GAConfig(population=4), np.random.default_rng(6))
     with pytest.raises(ValueError, match="expected 4"):
         ga.tell(np.zeros(3))
+
+
+def test_directed_mutation_changes_the_failure_state():
+    from ga.operators import motion_in_state, random_population
+
+    rng = np.random.default_rng(7)
+    g = random_population(rng, 1)[0]
+    cfg = GAConfig(population=10, crossover_rate=0.0, literal_rate=0, output_rate=0, switch_rate=0,
+                   replace_rate=0, directed_rate=1.0)
+    state = 0b01_000101  # obstacle front and front-right, target left: the array decides
+    ga = GeneticAlgorithm(cfg, rng, initial=np.tile(g, (10, 1)))
+    ga.tell(np.zeros(10), failures=[state] * 10)
+    children = ga.ask()[1:]
+    assert all(motion_in_state(c, state) != motion_in_state(g, state) for c in children)
+    # A failure in an obstacle-free state is the reflex's: nothing to change there.
+    ga = GeneticAlgorithm(cfg, rng, initial=np.tile(g, (10, 1)))
+    ga.tell(np.zeros(10), failures=[0b01_000000] * 10)
+    assert (ga.ask() == g).all()
+    ga.tell(np.zeros(10), failures=[None] * 10)
+    assert (ga.ask() == g).all()
