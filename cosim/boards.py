@@ -160,7 +160,7 @@ def make_boards(backend: str = "reference", *, reflex: bool = True, **options):
         # reference path free of Amaranth/cocotb imports.
         import importlib
 
-        module = {"amaranth": "cosim.amaranth_boards", "cocotb": "cosim.cocotb_boards"}[backend]
+        module = {"amaranth": "cosim.amaranth_backend", "cocotb": "cosim.cocotb_backend"}[backend]
         try:
             importlib.import_module(module)
         except ModuleNotFoundError as error:

@@ -17,6 +17,7 @@ BLOCKS = {
     "and_or_array": "hdl.and_or_array:AndOrArray",
     "controller_ehw": "hdl.controller_ehw:ControllerEHW",
     "evaluator_ehw": "hdl.evaluator_ehw:EvaluatorEHW",
+    "system_top": "hdl.system_top:SystemTop",
 }
 
 

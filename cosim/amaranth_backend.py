@@ -1,0 +1,245 @@
+"""The ``amaranth`` board backend: both EHW boards cycle-accurate in Amaranth's simulator.
+
+    python -m cosim.online --backend amaranth --seed 1      (make sim BACKEND=amaranth)
+
+One ``hdl.system_top.SystemTop`` (controller EHW + evaluator EHW + population streamer) lives in
+one ``amaranth.sim.Simulator`` for the whole run. Amaranth 0.5 cannot add a testbench to a running
+simulation, so a single testbench serves *jobs*: a board call puts a coroutine (from
+``hdl.system_top.SystemHost``) in the job slot and calls ``Simulator.advance()`` until the
+testbench has run it; between calls the testbench waits in 1 ps steps (no clock edge passes, so
+the boards' cycle counts are exactly the edges the jobs awaited). The cocotb backend drives the
+same top with the same ``SystemHost``, so the two HDL backends spend the same cycles.
+
+Each board also keeps the reference model (``cosim.boards`` reference backend) beside the HDL and
+checks every motion and every evaluation against it (``check=True``, the default): a divergence
+raises :class:`BoardMismatch` at once, with the call that diverged. The time the reference spent
+is kept (``reference_time_s``) to print the software time beside the hardware time.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+
+import numpy as np
+
+from cosim.boards import EvalCounts, ReferenceControllerBoard, ReferenceEvaluatorBoard, register_backend
+
+CLOCK_HZ = 12e6  # the iCEBreaker's oscillator: the FPGA clock the hardware time is given at
+IDLE_S = 1e-12  # the serving testbench's wait between jobs: far below a clock period
+
+
+def clock_hz_default() -> float:
+    """The FPGA clock for hardware times: ``EHW_CLOCK_HZ`` from the environment, else 12 MHz."""
+    value = os.environ.get("EHW_CLOCK_HZ", "")
+    try:
+        hz = float(value) if value else CLOCK_HZ
+    except ValueError:
+        raise ValueError(f"EHW_CLOCK_HZ must be a frequency in Hz, got {value!r}") from None
+    if not hz > 0:
+        raise ValueError(f"EHW_CLOCK_HZ must be positive, got {value!r}")
+    return hz
+
+
+class BoardMismatch(AssertionError):
+    """An HDL board disagreed with the reference model."""
+
+
+class AmaranthPins:
+    """``SystemHost``'s pin interface over an Amaranth testbench context."""
+
+    def __init__(self, dut):
+        self.dut = dut
+        self.ctx = None  # set by the serving testbench
+
+    def set(self, name: str, value: int) -> None:
+        self.ctx.set(getattr(self.dut, name), value)
+
+    def get(self, name: str) -> int:
+        return int(self.ctx.get(getattr(self.dut, name)))
+
+    async def tick(self) -> None:
+        await self.ctx.tick()
+
+    async def wait(self, name: str) -> None:
+        """Tick until ``name`` reads 1 (at least one tick)."""
+        signal = getattr(self.dut, name)
+        await self.ctx.tick()
+        while not self.ctx.get(signal):
+            await self.ctx.tick()
+
+
+class AmaranthSystem:
+    """One SystemTop in one Simulator, kept alive across calls; ``call(job)`` runs a coroutine
+    function ``job(host)`` in the simulation and returns its result."""
+
+    def __init__(self, reflex: bool = True, vcd: str | None = None):
+        from amaranth.sim import Simulator
+
+        from hdl.system_top import SystemHost, SystemTop
+
+        self.dut = SystemTop()
+        self.pins = AmaranthPins(self.dut)
+        self.host = SystemHost(self.pins)
+        self.sim = Simulator(self.dut)
+        self.sim.add_clock(1 / CLOCK_HZ)
+        self.sim.add_testbench(self._serve)
+        self._job = None
+        self._finished = False
+        self._result = None
+        self._error: BaseException | None = None
+        self._vcd = None
+        if vcd:
+            self._vcd = self.sim.write_vcd(vcd)
+            self._vcd.__enter__()
+        self.call(self.host.boot)
+        self.host.set_reflex(reflex)
+
+    async def _serve(self, ctx) -> None:
+        self.pins.ctx = ctx
+        while True:
+            if self._job is None:
+                await ctx.delay(IDLE_S)
+                continue
+            job, self._job = self._job, None
+            try:
+                self._result = await job()
+            except BaseException as error:  # handed to the caller of call()
+                self._error = error
+            self._finished = True
+
+    def call(self, job, *args):
+        """Run the coroutine ``job(*args)`` inside the simulation; return its result."""
+
+        async def bound():
+            return await job(*args)
+
+        self._job, self._finished, self._error = bound, False, None
+        while not self._finished:
+            self.sim.advance()
+        if self._error is not None:
+            raise self._error
+        return self._result
+
+    def close(self) -> None:
+        if self._vcd is not None:
+            self._vcd.__exit__(None, None, None)
+            self._vcd = None
+
+
+# -- the two boards over a shared system ----------------------------------------------------------
+
+
+class HDLControllerBoard:
+    """ControllerBoard over a system whose ``call(job, *args)`` runs ``SystemHost`` coroutines
+    (Amaranth: ``AmaranthSystem.call``; cocotb: ``cocotb.task.resume``)."""
+
+    def __init__(self, system, reflex: bool = True, check: bool = True):
+        self.system = system
+        self.host = system.host
+        self.reference = ReferenceControllerBoard(reflex=reflex) if check else None
+
+    @property
+    def cycles(self) -> int:
+        return self.host.controller_cycles
+
+    def load(self, rows: np.ndarray) -> None:
+        from ga.genome import validate_rows
+
+        rows = validate_rows(rows)
+        if rows.ndim != 1:
+            raise ValueError(f"a controller board holds one genome (50,), got shape {rows.shape!r}")
+        self.system.call(self.host.load, rows)
+        if self.reference is not None:
+            self.reference.load(rows)
+
+    def set_reflex(self, enabled: bool) -> None:
+        self.host.set_reflex(enabled)
+        if self.reference is not None:
+            self.reference.set_reflex(enabled)
+
+    def motion(self, state: int) -> int:
+        if not 0 <= int(state) < 256:
+            raise ValueError(f"a world state is in 0..255, got {state!r}")
+        motion = self.system.call(self.host.motion, int(state))
+        if self.reference is not None:
+            expected = self.reference.motion(state)
+            if motion != expected:
+                raise BoardMismatch(f"controller board: motion {motion} in state {state}, "
+                                    f"the reference gives {expected}")
+        return motion
+
+
+class HDLEvaluatorBoard:
+    """EvaluatorBoard over the same system; ``cycles`` counts the evaluator's own cycles."""
+
+    def __init__(self, system, reflex: bool = True, check: bool = True):
+        self.system = system
+        self.host = system.host
+        self.reference = ReferenceEvaluatorBoard(reflex=reflex) if check else None
+        self.reference_time_s = 0.0  # software time of the reference evaluations (check=True)
+        self.evaluations = 0  # controllers evaluated
+
+    @property
+    def cycles(self) -> int:
+        return self.host.evaluator_cycles
+
+    @property
+    def transfer_cycles(self) -> int:
+        return self.host.transfer_cycles
+
+    def observe(self, state: int, motion: int, next_state: int, crashed: bool) -> None:
+        self.system.call(self.host.observe, int(state), int(motion), int(next_state), bool(crashed))
+        if self.reference is not None:
+            self.reference.observe(state, motion, next_state, crashed)
+
+    def evaluate(self, population: np.ndarray) -> EvalCounts:
+        from ga.genome import validate_rows
+
+        population = validate_rows(population)
+        if population.ndim != 2:
+            raise ValueError(f"a population is (P, 50), got shape {population.shape!r}")
+        counts, cycles = self.system.call(self.host.evaluate, population)
+        arr = np.asarray(counts, dtype=np.int64).reshape(-1, 3)
+        result = EvalCounts(crashes=arr[:, 0], loops=arr[:, 1], distance=arr[:, 2], cycles=int(cycles))
+        self.evaluations += len(population)
+        if self.reference is not None:
+            t0 = time.perf_counter()
+            expected = self.reference.evaluate(population)
+            self.reference_time_s += time.perf_counter() - t0
+            for name in ("crashes", "loops", "distance"):
+                got, want = getattr(result, name), np.asarray(getattr(expected, name))
+                if not np.array_equal(got, want):
+                    i = int(np.flatnonzero(got != want)[0])
+                    raise BoardMismatch(f"evaluator board: {name} of controller {i} is {got[i]}, the "
+                                        f"reference gives {want[i]} (model of {self.host.model.n_states} states)")
+        return result
+
+
+def hardware_figures(controller, evaluator, clock_hz: float | None = None) -> dict:
+    """Cycle counts of an HDL board pair and the time the boards would take at ``clock_hz``
+    (default ``EHW_CLOCK_HZ`` or 12 MHz), beside the reference model's software time."""
+    hz = clock_hz_default() if clock_hz is None else float(clock_hz)
+    ctl, ev = int(controller.cycles), int(evaluator.cycles)
+    transfer = int(getattr(evaluator, "transfer_cycles", 0))
+    out = {
+        "clock_hz": hz,
+        "controller_cycles": ctl,
+        "evaluator_cycles": ev,
+        "host_link_cycles": transfer,
+        "controller_time_s": ctl / hz,
+        "evaluator_time_s": ev / hz,
+        "controllers_evaluated": int(getattr(evaluator, "evaluations", 0)),
+    }
+    if getattr(evaluator, "reference", None) is not None:
+        out["reference_evaluator_time_s"] = round(evaluator.reference_time_s, 6)
+    return out
+
+
+def make_amaranth_boards(reflex: bool = True, check: bool = True, vcd: str | None = None):
+    """A fresh (controller board, evaluator board) pair sharing one simulated SystemTop."""
+    system = AmaranthSystem(reflex=reflex, vcd=vcd)
+    return HDLControllerBoard(system, reflex, check), HDLEvaluatorBoard(system, reflex, check)
+
+
+register_backend("amaranth", make_amaranth_boards)
