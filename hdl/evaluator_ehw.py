@@ -17,7 +17,8 @@ Datapath
 - ``shadow`` / ``arch``: the controller's configuration, double-buffered like the controller
   board's: the row-write port fills ``shadow`` at any time (also while busy), ``start`` copies it
   (with a row written in the same cycle) into ``arch``, which drives the AND-OR array. Loading the
-  next controller therefore overlaps evaluating this one.
+  next controller therefore overlaps evaluating this one. (``double_buffer=False`` drops the
+  shadow: rows go straight into ``arch``, only while idle.)
 
 One trace step per clock: the RAM's read address is combinational from its own registered
 output. In each ``Trace`` cycle the entry e of the state ``cur`` issued in the previous cycle is
@@ -111,12 +112,17 @@ class EvaluatorEHW(wiring.Component):
     ----------
     k : int
         Rows of the AND-OR array (default 50). n = 8 and m = 3 are fixed by SPEC section 4.
+    double_buffer : bool
+        True (default): a shadow configuration, so the next controller's rows load while this
+        one is evaluated. False: the rows go straight into the active configuration and are
+        accepted only when ``ready`` (saves k x 19 = 950 flip-flops, e.g. for a small FPGA;
+        loading then costs 50 cycles more per controller).
 
     Ports
     -----
     row_addr : In(6), row_data : In(19), row_we : In(1)
         Row-write port into the shadow configuration (as the controller board's); addresses
-        >= k are ignored. Accepted in every state.
+        >= k are ignored. Accepted in every state (``double_buffer=False``: only when ready).
     model_state : In(8), model_motion : In(3), model_next : In(8), model_crash : In(1),
     model_valid : In(1), model_we : In(1)
         World-model write port: entry (state, motion) := {next, crash, valid} at the next edge,
@@ -142,8 +148,11 @@ class EvaluatorEHW(wiring.Component):
         |S|.
     """
 
-    def __init__(self, k: int = N_ROWS):
+    def __init__(self, k: int = N_ROWS, double_buffer: bool = True):
         self.k = _check_positive("k", k)
+        if not isinstance(double_buffer, bool):
+            raise TypeError(f"double_buffer must be a bool, got {double_buffer!r}")
+        self.double_buffer = double_buffer
         self.row_bits = ROW_BITS
         super().__init__({
             "row_addr": In(row_addr_bits(self.k)),
@@ -179,12 +188,17 @@ class EvaluatorEHW(wiring.Component):
         rd = ram.read_port()  # synchronous: rd.data is the entry at last cycle's rd.addr
 
         # -- configuration: shadow filled by the row port, copied to arch at start ----------------
-        shadow = Signal(k * W)
-        arch = Signal(k * W)
+        if self.double_buffer:
+            shadow = Signal(k * W)
+            arch = Signal(k * W)
+            row_write = self.row_we  # always: the shadow never drives the array
+        else:
+            shadow = arch = Signal(k * W)  # the rows go straight to the array: only while idle
+            row_write = self.row_we & self.ready
         shadow_next = Signal(k * W)  # the shadow after this cycle's row write: what start takes
         m.d.comb += shadow_next.eq(shadow)
         for r in range(k):
-            with m.If(self.row_we & (self.row_addr == r)):
+            with m.If(row_write & (self.row_addr == r)):
                 m.d.comb += shadow_next[r * W:(r + 1) * W].eq(self.row_data)
         m.d.sync += shadow.eq(shadow_next)
 
@@ -286,8 +300,9 @@ class EvaluatorEHW(wiring.Component):
                     m.d.sync += [in_set.eq(0), self.n_states.eq(0), clear_addr.eq(0)]
                     m.next = "Clear"
                 with m.Elif(self.start):
+                    if self.double_buffer:
+                        m.d.sync += arch.eq(shadow_next)
                     m.d.sync += [
-                        arch.eq(shadow_next),
                         reflex_r.eq(self.reflex_en),
                         tested.eq(0),
                         acc_crashes.eq(0),
@@ -432,6 +447,8 @@ class EvaluatorSimHost:
     async def evaluate_overlapped(self, population, reflex=True):
         """Write the rows of controller i + 1 while controller i is evaluated; start each as soon
         as the board is ready and its rows are in. Returns ([counts], [cycles], total edges)."""
+        if not self.dut.double_buffer:
+            raise ValueError("overlapped loading needs EvaluatorEHW(double_buffer=True)")
         ctx, dut = self.ctx, self.dut
         ctx.set(dut.reflex_en, int(reflex))
         first = self.cycle
@@ -460,14 +477,15 @@ class EvaluatorSimHost:
         return counts, cycles, self.cycle - first
 
 
-def simulate_population(model, population, reflex: bool = True, overlap: bool = True):
+def simulate_population(model, population, reflex: bool = True, overlap: bool = True,
+                        double_buffer: bool = True):
     """Evaluate ``population`` (P, 50) on ``model`` (a ``ga.world_model.WorldModel``) in a fresh
     EvaluatorEHW under Amaranth's simulator. Returns (counts [(crashes, loops, distance)] per
     controller, cycles register per controller, clock cycles from the first row written to the
     last done: the cost of the population, loading included)."""
     from amaranth.sim import Simulator
 
-    dut = EvaluatorEHW()
+    dut = EvaluatorEHW(double_buffer=double_buffer)
     out = {}
 
     async def testbench(ctx):

@@ -27,9 +27,9 @@ TB_DIR = Path(__file__).resolve().parent / "cocotb_tb"
 pytestmark = pytest.mark.filterwarnings("ignore::amaranth.hdl.UnusedElaboratable")
 
 
-def run_sim(body):
-    """Run ``await body(host)`` in a fresh EvaluatorEHW under Amaranth's simulator."""
-    dut = EvaluatorEHW()
+def run_sim(body, **options):
+    """Run ``await body(host)`` in a fresh EvaluatorEHW(**options) under Amaranth's simulator."""
+    dut = EvaluatorEHW(**options)
 
     async def testbench(ctx):
         host = SimHost(ctx, dut)
@@ -88,6 +88,44 @@ def test_overlapped_loading_matches_and_hides_the_rows():
         assert total <= 50 + len(pop) * (n + 2), total
 
     run_sim(body)
+
+
+def test_single_buffer_variant_matches_and_ignores_rows_while_busy():
+    """double_buffer=False: rows go to the array directly, accepted only while idle."""
+    name, model, pop, reflex = cases()[-2]  # "medium"
+    want = reference_counts(pop, model, reflex)
+
+    async def body(host):
+        ctx, dut = host.ctx, host.dut
+        await host.write_model(model)
+        for i, rows in enumerate(pop):
+            counts, cycles, cost = await host.evaluate(rows, reflex)
+            assert counts == want[i] and cycles == model.n_states + 1, (name, i)
+        # Rows written while busy are dropped: the array keeps pop[0].
+        await host.evaluate(pop[0], reflex)
+        ctx.set(dut.start, 1)
+        await host.tick()
+        ctx.set(dut.start, 0)
+        for r, word in enumerate(pop[1]):
+            assert ctx.get(dut.busy)
+            ctx.set(dut.row_addr, r)
+            ctx.set(dut.row_data, int(word))
+            ctx.set(dut.row_we, 1)
+            await host.tick()
+            if ctx.get(dut.done):
+                break
+        ctx.set(dut.row_we, 0)
+        await host.wait_ready()
+        assert host.results()[0] == want[0]
+        ctx.set(dut.start, 1)  # run again without loading: the array still holds pop[0]
+        await host.tick()
+        ctx.set(dut.start, 0)
+        await host.wait_ready()
+        assert host.results()[0] == want[0]
+        with pytest.raises(ValueError, match="double_buffer"):
+            await host.evaluate_overlapped(pop)
+
+    run_sim(body, double_buffer=False)
 
 
 def test_transitions_written_while_idle_count_at_the_next_evaluation():
