@@ -91,6 +91,9 @@ class OnlineConfig:
     loop_window: int = 0  # > 0: stop when no new closest approach to the ball for this many steps
     # learning phase
     targeted: int = 0  # state-targeted mutants of the best written into the population per phase
+    # after a time-out or loop, download the fittest individual whose motion in the blamed state
+    # differs from the failed one (the model cannot see a real-world loop; see docs/online.md)
+    escape: bool = False
     # adaptation: blind IR bit `blind_bit` (stuck at 0) once `blind_after_target` targets are reached
     blind_bit: int | None = None
     blind_after_target: int | None = None
@@ -148,6 +151,7 @@ class OnlineRun:
         controller.set_reflex(config.reflex)
         # --- lifetime counters (rebuilt by replay on resume) ---
         self.motions: list[int] = []  # every motion executed, in order (the replay log)
+        self.state_log: list[int] = []  # the state observed after each motion
         self.interactions = 0
         self.targets = 0
         self.leg_steps = 0  # steps on the current leg since the last (re)start of execution
@@ -184,6 +188,7 @@ class OnlineRun:
         self.mirror.observe(s, motion, step.state, step.crashed)
         self.transitions.add((s, motion, step.state, step.crashed))
         self.motions.append(motion)
+        self.state_log.append(step.state)
         self.interactions += 1
         self.leg_steps += 1
         self.window.append((s, motion))
@@ -258,7 +263,8 @@ class OnlineRun:
         cfg = self.config
         record = {
             "phase": len(self.phases) + 1, "reason": reason, "interactions": self.interactions,
-            "targets": self.targets, "execution_steps": steps, "state": int(state), "motion": int(motion),
+            "targets": self.targets, "execution_steps": steps, "leg_steps": self.leg_steps,
+            "state": int(state), "motion": int(motion),
             "world_states": self.mirror.n_states, "model_transitions": self.mirror.n_transitions,
         }
         if cfg.targeted and self.best_rows is not None and state & OBSTACLE_MASK:
@@ -275,11 +281,16 @@ class OnlineRun:
             self.ga.tell(model_fitness(counts, n_states))
             self.generations += 1
             self.genetic_operations += pop.shape[0]
-        best = self.ga.best_rows
-        self.best_rows = best.copy()
-        self.controller.load(best)
         last = self.ga.last_fitness
         i_best = int(np.argmax(last))
+        if cfg.escape and reason in ("timeout", "loop") and state & OBSTACLE_MASK:
+            differs = _motions_in(pop, state, cfg.reflex) != motion
+            if differs.any() and not differs[i_best]:
+                i_best = int(np.flatnonzero(differs)[np.argmax(last[differs])])
+                record["escaped"] = True
+        best = pop[i_best]
+        self.best_rows = best.copy()
+        self.controller.load(best)
         record.update({
             "best_fitness": round(float(last[i_best]), 6),
             "best_crashes": int(counts.crashes[i_best]), "best_loops": int(counts.loops[i_best]),
@@ -377,7 +388,7 @@ class OnlineRun:
         """The off-line summary's keys plus the on-line ones (phases and their reasons)."""
         cfg = self.config
         reasons = Counter(p["reason"] for p in self.phases)
-        lost = sum(p["execution_steps"] for p in self.phases if p["reason"] in ("timeout", "loop"))
+        lost = sum(p["leg_steps"] for p in self.phases if p["reason"] in ("timeout", "loop"))
         at64 = next((t for t in self.target_log if t["target"] == min(64, cfg.n_targets)), None)
         out = {
             "method": "online-model-based",
@@ -395,7 +406,7 @@ class OnlineRun:
             "wall_time_s": round(self.wall_time_s, 3),
             "learning_phases": len(self.phases),
             "phase_reasons": dict(sorted(reasons.items())),
-            "interactions_in_failed_phases": lost,
+            "interactions_lost_to_timeouts": lost,
             "known_crash_repeats": self.known_crash_repeats,
             "crashes": sum(1 for p in self.phases if p["reason"] == "crash"),
             "board_cycles": {"controller": int(getattr(self.controller, "cycles", 0)),
@@ -556,9 +567,10 @@ def write_results(run: OnlineRun, out: Path, plots: bool = True) -> dict:
 
 def config_from_args(args) -> OnlineConfig:
     return OnlineConfig(
-        seed=args.seed, arena=args.arena, n_targets=64 + args.continue_past_64,
+        seed=args.seed, arena=args.arena, n_targets=args.targets + args.continue_past_64,
         population=args.population, generations_per_phase=args.generations_per_phase,
         max_leg_steps=args.max_leg_steps, loop_window=args.loop_window, targeted=args.targeted,
+        escape=args.escape,
         blind_bit=args.blind_bit, blind_after_target=args.blind_after_target,
     )
 
@@ -571,6 +583,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--arena", default=d.arena)
     p.add_argument("--out", type=Path, default=Path("results/model_based"))
     p.add_argument("--resume", action="store_true", help="continue from <out>/checkpoint.json")
+    p.add_argument("--targets", type=int, default=64, help="targets of the lifetime (default 64)")
     p.add_argument("--continue-past-64", type=int, default=0, metavar="N",
                    help="go on for N more targets after the 64th (Fig. 11)")
     p.add_argument("--blind-bit", type=int, default=None, metavar="B", help="IR bit 0..5 to blind (stuck at 0)")
@@ -580,6 +593,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--max-leg-steps", type=int, default=d.max_leg_steps)
     p.add_argument("--loop-window", type=int, default=d.loop_window)
     p.add_argument("--targeted", type=int, default=d.targeted)
+    p.add_argument("--escape", action=argparse.BooleanOptionalAction, default=d.escape)
     p.add_argument("--no-plots", action="store_true")
     p.add_argument("--no-progress", action="store_true")
     return p
@@ -588,6 +602,11 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     config = config_from_args(args)
+    if args.backend == "cocotb":
+        # The loop must run inside the cocotb simulation: that module launches it (in a thread).
+        from cosim.cocotb_backend import main_from_args
+
+        return main_from_args(args, config)
     try:
         run = make_run(config, args.backend, args.out, resume=args.resume, progress=not args.no_progress)
     except CheckpointError as exc:
