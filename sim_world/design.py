@@ -49,6 +49,10 @@ def regular_polygon(cx: float, cy: float, circumradius: float, n: int, rotation_
     ]
 
 
+def ellipse(cx: float, cy: float, a: float, b: float, n: int):
+    return [[round(cx + a * math.cos(2 * math.pi * k / n), 1), round(cy + b * math.sin(2 * math.pi * k / n), 1)] for k in range(n)]
+
+
 def rectangle(cx: float, cy: float, width: float, height: float, rotation_deg: float = 0.0):
     rot = math.radians(rotation_deg)
     c, s = math.cos(rot), math.sin(rot)
@@ -58,18 +62,20 @@ def rectangle(cx: float, cy: float, width: float, height: float, rotation_deg: f
 
 # The default arena's 9 obstacles: a ring of 8 around the ball (4 near the corners, 4 near the
 # middles of the sides) plus one between the ball and the lower-left corner, every one a different
-# convex shape, no interior angle under 60 degrees, every gap >= 600 mm (wall gaps >= 400 mm), so
+# convex shape, no interior angle under 90 degrees (sharp corners hide between
+# the IR rays), obstacle gaps >= 500 mm
+# (two robot diameters) and wall gaps >= 600 mm, so
 # the 25 cm robot passes everywhere with room to turn.
 DEFAULT_OBSTACLES = [
-    {"name": "hexagon", "polygon": regular_polygon(700, 700, 250, 6, 0)},
-    {"name": "triangle", "polygon": regular_polygon(2150, 680, 300, 3, 90)},
-    {"name": "square", "polygon": rectangle(3300, 700, 380, 380, 30)},
-    {"name": "bar_vertical", "polygon": rectangle(3330, 2000, 250, 700, 0)},
-    {"name": "disc", "circle": [3250, 3250], "radius": 260},
-    {"name": "bar_horizontal", "polygon": rectangle(2000, 3300, 700, 250, 0)},
-    {"name": "pentagon", "polygon": regular_polygon(800, 3100, 260, 5, 90)},
-    {"name": "octagon", "polygon": regular_polygon(650, 2100, 230, 8, 22.5)},
-    {"name": "diamond", "polygon": rectangle(1400, 1400, 300, 300, 45)},
+    {"name": "hexagon", "polygon": regular_polygon(820, 820, 200, 6, 0)},
+    {"name": "ellipse", "polygon": ellipse(2100, 850, 300, 170, 20)},
+    {"name": "square", "polygon": rectangle(3180, 820, 300, 300, 30)},
+    {"name": "bar_vertical", "polygon": rectangle(3250, 2050, 200, 600, 0)},
+    {"name": "disc", "circle": [3150, 3150], "radius": 230},
+    {"name": "bar_horizontal", "polygon": rectangle(2050, 3250, 600, 200, 0)},
+    {"name": "pentagon", "polygon": regular_polygon(850, 3150, 230, 5, 90)},
+    {"name": "octagon", "polygon": regular_polygon(800, 2000, 200, 8, 22.5)},
+    {"name": "heptagon", "polygon": regular_polygon(1450, 1450, 180, 7, 45)},
 ]
 
 
