@@ -130,14 +130,80 @@ class AmaranthSystem:
 # -- the two boards over a shared system ----------------------------------------------------------
 
 
+class BoardLog:
+    """What crossed the board interface, for comparing backends: every downloaded genome (hex)
+    and a digest of every evaluation's (crashes, loops, distance)."""
+
+    def __init__(self):
+        self.downloads: list[str] = []
+        self.evaluations: list[str] = []
+
+    def download(self, rows) -> None:
+        from ga.genome import hex_from_rows
+
+        self.downloads.append(hex_from_rows(rows))
+
+    def evaluation(self, counts: EvalCounts) -> None:
+        import hashlib
+
+        data = np.stack([np.asarray(counts.crashes), np.asarray(counts.loops),
+                         np.asarray(counts.distance)]).astype(np.int64)
+        self.evaluations.append(hashlib.sha1(data.tobytes()).hexdigest()[:16])
+
+    def to_dict(self, motions=()) -> dict:
+        return {"motions": bytes(motions).hex(), "downloads": self.downloads,
+                "evaluations": self.evaluations}
+
+    def write(self, path, motions=()) -> None:
+        import json
+        from pathlib import Path
+
+        Path(path).write_text(json.dumps(self.to_dict(motions), indent=1) + "\n")
+
+
+class LoggedBoards:
+    """Wrap any (controller, evaluator) pair so that a ``BoardLog`` records its calls."""
+
+    def __init__(self, controller, evaluator, log: BoardLog | None = None):
+        self.log = log or BoardLog()
+        self.controller = _LoggedController(controller, self.log)
+        self.evaluator = _LoggedEvaluator(evaluator, self.log)
+
+
+class _LoggedController:
+    def __init__(self, board, log):
+        self._board, self.log = board, log
+
+    def __getattr__(self, name):
+        return getattr(self._board, name)
+
+    def load(self, rows):
+        self._board.load(rows)
+        self.log.download(rows)
+
+
+class _LoggedEvaluator:
+    def __init__(self, board, log):
+        self._board, self.log = board, log
+
+    def __getattr__(self, name):
+        return getattr(self._board, name)
+
+    def evaluate(self, population):
+        counts = self._board.evaluate(population)
+        self.log.evaluation(counts)
+        return counts
+
+
 class HDLControllerBoard:
     """ControllerBoard over a system whose ``call(job, *args)`` runs ``SystemHost`` coroutines
     (Amaranth: ``AmaranthSystem.call``; cocotb: ``cocotb.task.resume``)."""
 
-    def __init__(self, system, reflex: bool = True, check: bool = True):
+    def __init__(self, system, reflex: bool = True, check: bool = True, log: BoardLog | None = None):
         self.system = system
         self.host = system.host
         self.reference = ReferenceControllerBoard(reflex=reflex) if check else None
+        self.log = log if log is not None else BoardLog()
 
     @property
     def cycles(self) -> int:
@@ -150,11 +216,12 @@ class HDLControllerBoard:
         if rows.ndim != 1:
             raise ValueError(f"a controller board holds one genome (50,), got shape {rows.shape!r}")
         self.system.call(self.host.load, rows)
+        self.log.download(rows)
         if self.reference is not None:
             self.reference.load(rows)
 
     def set_reflex(self, enabled: bool) -> None:
-        self.host.set_reflex(enabled)
+        self.system.call(self.host.reflex, bool(enabled))
         if self.reference is not None:
             self.reference.set_reflex(enabled)
 
@@ -173,10 +240,11 @@ class HDLControllerBoard:
 class HDLEvaluatorBoard:
     """EvaluatorBoard over the same system; ``cycles`` counts the evaluator's own cycles."""
 
-    def __init__(self, system, reflex: bool = True, check: bool = True):
+    def __init__(self, system, reflex: bool = True, check: bool = True, log: BoardLog | None = None):
         self.system = system
         self.host = system.host
         self.reference = ReferenceEvaluatorBoard(reflex=reflex) if check else None
+        self.log = log if log is not None else BoardLog()
         self.reference_time_s = 0.0  # software time of the reference evaluations (check=True)
         self.evaluations = 0  # controllers evaluated
 
@@ -203,6 +271,7 @@ class HDLEvaluatorBoard:
         arr = np.asarray(counts, dtype=np.int64).reshape(-1, 3)
         result = EvalCounts(crashes=arr[:, 0], loops=arr[:, 1], distance=arr[:, 2], cycles=int(cycles))
         self.evaluations += len(population)
+        self.log.evaluation(result)
         if self.reference is not None:
             t0 = time.perf_counter()
             expected = self.reference.evaluate(population)
@@ -239,7 +308,9 @@ def hardware_figures(controller, evaluator, clock_hz: float | None = None) -> di
 def make_amaranth_boards(reflex: bool = True, check: bool = True, vcd: str | None = None):
     """A fresh (controller board, evaluator board) pair sharing one simulated SystemTop."""
     system = AmaranthSystem(reflex=reflex, vcd=vcd)
-    return HDLControllerBoard(system, reflex, check), HDLEvaluatorBoard(system, reflex, check)
+    log = BoardLog()
+    return (HDLControllerBoard(system, reflex, check, log=log),
+            HDLEvaluatorBoard(system, reflex, check, log=log))
 
 
 register_backend("amaranth", make_amaranth_boards)

@@ -295,6 +295,11 @@ class SystemHost:
         self.pins.set("ctl_reflex_en", int(enabled))
         self.pins.set("ev_reflex_en", int(enabled))
 
+    async def reflex(self, enabled: bool) -> None:
+        """``set_reflex`` as a job (no clock edge): a simulator's inputs are set from its own
+        thread only (cocotb: a write from the bridge thread outside ``resume`` can be lost)."""
+        self.set_reflex(enabled)
+
     async def load(self, rows) -> None:
         """Download one controller: 50 row writes, the commit with the last (50 cycles)."""
         pins = self.pins
@@ -337,6 +342,44 @@ class SystemHost:
         await pins.tick()
         pins.set("ev_state_we", 0)
         self.transfer_cycles += 2
+
+    async def clear(self) -> None:
+        """Empty the evaluator's model (S and every RAM entry: 2049 cycles) and the host's copy."""
+        from ga.world_model import WorldModel
+
+        pins = self.pins
+        pins.set("ev_clear", 1)
+        await pins.tick()
+        pins.set("ev_clear", 0)
+        edges = 1
+        while not pins.get("ev_ready"):
+            await pins.tick()
+            edges += 1
+        self.transfer_cycles += edges
+        self.model = WorldModel()
+
+    async def write_model(self, model) -> None:
+        """Copy a whole ``ga.world_model.WorldModel`` into an empty board: every valid entry and
+        every state of S, one of each per cycle."""
+        pins = self.pins
+        entries, states = model.entries(), model.states
+        for i in range(max(len(entries), len(states))):
+            if i < len(entries):
+                state, motion, next_state, crash = (int(v) for v in entries[i])
+                pins.set("ev_model_state", state)
+                pins.set("ev_model_motion", motion)
+                pins.set("ev_model_next", next_state)
+                pins.set("ev_model_crash", crash)
+                pins.set("ev_model_valid", 1)
+            pins.set("ev_model_we", int(i < len(entries)))
+            if i < len(states):
+                pins.set("ev_state_value", int(states[i]))
+            pins.set("ev_state_we", int(i < len(states)))
+            await pins.tick()
+            self.transfer_cycles += 1
+        pins.set("ev_model_we", 0)
+        pins.set("ev_state_we", 0)
+        self.model = model.copy()
 
     async def evaluate(self, population) -> tuple[list[tuple[int, int, int]], int]:
         """(crashes, loops, distance) of each controller of ``population`` (P, 50), and the

@@ -1,0 +1,249 @@
+"""The ``cocotb`` board backend: the on-line experiment runs inside a cocotb test, on the generated
+Verilog of both EHW boards in Icarus Verilog.
+
+    python -m cosim.online --backend cocotb --seed 1          (make sim BACKEND=cocotb [WAVES=1])
+
+The process that is started (``python -m cosim.online``) only launches the simulation
+(:func:`run_online_cocotb`): it writes ``system_top.v`` (``hdl.system_top.SystemTop``: controller
+EHW + evaluator EHW + population streamer), builds it with Icarus through
+``cosim.cocotb_run.run_cocotb`` and runs this module's cocotb test :func:`online_experiment`,
+passing the run's configuration and options in environment variables (``EHW_ONLINE_CONFIG``,
+``EHW_ONLINE_OPTIONS``, JSON). Inside the simulator the test starts the clock, resets the top, waits
+for the evaluator's RAM sweep, and runs the whole experiment loop of ``cosim.online`` in a thread
+(``cocotb.task.bridge``): the loop steps the pymunk world and calls the boards, and each board call
+is a coroutine of ``hdl.system_top.SystemHost`` run in the simulator (``cocotb.task.resume``):
+
+- ``controller.load(rows)``: 50 row writes into the controller EHW's shadow, commit with the last;
+- ``controller.motion(s)``: the sensor bits for one cycle, the registered motion read back;
+- ``evaluator.observe(...)``: the resulting world-model entry and both states written (2 cycles);
+- ``evaluator.evaluate(pop)``: the population written into the streamer's RAM (one genome per
+  cycle), one ``go``, then *one* wait for ``pop_done`` (no Python while the evaluator works:
+  the streamer loads each controller's rows into the evaluator and starts it, overlapped with the
+  previous evaluation), then the results read back.
+
+The test writes ``summary.json`` (plus ``board_log.json``: executed motions, downloaded genomes,
+a digest of every evaluation) into the output folder; the launching process reads it and prints
+the same table as the other backends. ``WAVES=1`` dumps ``build/sim/system_top/system_top.fst``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import sys
+from pathlib import Path
+
+from cosim.amaranth_backend import (BoardLog, HDLControllerBoard, HDLEvaluatorBoard, clock_hz_default,
+                                    hardware_figures)
+from cosim.boards import register_backend
+
+TOPLEVEL = "system_top"
+CONFIG_ENV = "EHW_ONLINE_CONFIG"
+OPTIONS_ENV = "EHW_ONLINE_OPTIONS"
+CLOCK_PERIOD_NS = 10  # simulated clock; the hardware time uses the FPGA clock (EHW_CLOCK_HZ)
+
+_active_system = None  # the CocotbSystem of the running test (inside the simulator only)
+
+
+class CocotbPins:
+    """``SystemHost``'s pin interface over cocotb handles: inputs are set after a falling edge, the
+    rising edge in mid-cycle samples them, outputs are read at the next falling edge."""
+
+    def __init__(self, dut):
+        from cocotb.triggers import FallingEdge
+
+        self.dut = dut
+        self._handles = {}
+        self._falling = FallingEdge(dut.clk)
+
+    def _handle(self, name):
+        handle = self._handles.get(name)
+        if handle is None:
+            handle = self._handles[name] = getattr(self.dut, name)
+        return handle
+
+    def set(self, name: str, value: int) -> None:
+        self._handle(name).value = value
+
+    def get(self, name: str) -> int:
+        value = self._handle(name).value
+        try:
+            return value.to_unsigned() if hasattr(value, "to_unsigned") else int(value)
+        except ValueError:
+            raise ValueError(f"{name} reads {value!s}: not a number (X or Z bits)") from None
+
+    async def tick(self) -> None:
+        await self._falling
+
+    async def wait(self, name: str) -> None:
+        """Until ``name`` has risen, then to the falling edge after it (as ticking until it reads 1)."""
+        from cocotb.triggers import RisingEdge
+
+        await RisingEdge(self._handle(name))
+        await self._falling
+
+
+class CocotbSystem:
+    """The system top under cocotb: ``call(job, *args)`` runs a ``SystemHost`` coroutine from the
+    experiment's thread (``cocotb.task.resume``)."""
+
+    def __init__(self, dut):
+        from hdl.system_top import SystemHost
+
+        self.dut = dut
+        self.pins = CocotbPins(dut)
+        self.host = SystemHost(self.pins)
+
+    async def start(self) -> None:
+        """Clock, synchronous reset, then the evaluator's RAM sweep (Boot + Clear)."""
+        from cocotb.clock import Clock
+
+        Clock(self.dut.clk, CLOCK_PERIOD_NS, unit="ns").start(start_high=False)
+        self.dut.rst.value = 1
+        await self.pins.tick()  # the first falling edge is the clock's start: no rising edge yet
+        await self.pins.tick()
+        self.dut.rst.value = 0
+        await self.host.boot()
+
+    def call(self, job, *args):
+        from cocotb.task import resume
+
+        return resume(job)(*args)
+
+
+def make_cocotb_boards(reflex: bool = True, check: bool = True):
+    """The board pair on the running test's system top (inside the simulator only)."""
+    if _active_system is None:
+        raise RuntimeError(
+            "the cocotb backend runs the experiment inside the simulator: start it with "
+            "`python -m cosim.online --backend cocotb` or cosim.cocotb_backend.run_online_cocotb(config)"
+        )
+    _active_system.call(_active_system.host.reflex, bool(reflex))
+    log = BoardLog()
+    return (HDLControllerBoard(_active_system, reflex, check, log=log),
+            HDLEvaluatorBoard(_active_system, reflex, check, log=log))
+
+
+register_backend("cocotb", make_cocotb_boards)
+
+
+# -- inside the simulator ---------------------------------------------------------------------------
+
+try:
+    import cocotb
+except ImportError:  # pragma: no cover - cocotb is a dependency; keep the module importable anyway
+    cocotb = None
+
+
+def _experiment(config: dict, options: dict) -> dict:
+    """The blocking experiment (runs in cocotb's bridge thread)."""
+    from cosim.online import OnlineConfig, make_run, summary_table, write_results
+
+    cfg = OnlineConfig(**config)
+    out = Path(options["out"])
+    run = make_run(cfg, "cocotb", out if options.get("checkpoint", True) else None,
+                   resume=bool(options.get("resume")), progress=bool(options.get("progress")))
+    run.run()
+    summary = write_results(run, out, plots=bool(options.get("plots")))
+    summary["hardware"] = hardware_figures(run.controller, run.evaluator, options.get("clock_hz"))
+    (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
+    run.controller.log.write(out / "board_log.json", run.motions)
+    print(summary_table(summary), file=sys.stderr)
+    return summary
+
+
+if cocotb is not None:
+
+    @cocotb.test()
+    async def online_experiment(dut):
+        """The whole on-line experiment on system_top; options from the environment."""
+        global _active_system
+        from cocotb.task import bridge
+
+        config = json.loads(os.environ[CONFIG_ENV])
+        options = json.loads(os.environ[OPTIONS_ENV])
+        system = CocotbSystem(dut)
+        await system.start()
+        _active_system = system
+        try:
+            await bridge(_experiment)(config, options)
+        finally:
+            _active_system = None
+
+
+# -- the launching process --------------------------------------------------------------------------
+
+
+# Yosys makes every generated ``always @*`` block also wait on a 1-bit ``reg ... = 0`` so that it
+# runs once at time 0; Icarus applies that initialiser without an event, so a combinational block
+# whose inputs keep their initial values is never evaluated and drives X. (Seen here: the
+# evaluator's per-motion distance lookup read X until ``cur_motion`` first changed from 0, so a
+# population whose first traced motions were all "forward" scored distance X.) Toggling each
+# trigger register once, before the first clock edge, runs every such block.
+_TRIGGER = re.compile(r"^(\s*)reg (\\\$auto\$verilog_backend\.cc:\d+:dump_module\$\d+ ) = 0;$", re.M)
+
+
+def icarus_time_zero_fix(verilog: str) -> str:
+    """``verilog`` with an ``initial #1`` toggle of each of Yosys's time-0 trigger registers."""
+    return _TRIGGER.sub(lambda mt: f"{mt.group(0)}\n{mt.group(1)}initial #1 {mt.group(2)}= 1;", verilog)
+
+
+def write_system_verilog(out_dir: Path | str | None = None) -> Path:
+    """``system_top.v`` for Icarus (regenerated each time: a few seconds)."""
+    from cosim.cocotb_run import SIM_BUILD
+    from hdl.generate import verilog_text
+
+    out = Path(out_dir) if out_dir else SIM_BUILD / "verilog"
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / f"{TOPLEVEL}.v"
+    path.write_text(icarus_time_zero_fix(verilog_text(TOPLEVEL)))
+    return path
+
+
+def run_online_cocotb(config, out: Path | str, *, resume: bool = False, plots: bool = False,
+                      progress: bool = False, waves: bool | None = None, clock_hz: float | None = None,
+                      build_name: str = TOPLEVEL) -> dict:
+    """Run the on-line experiment ``config`` (a ``cosim.online.OnlineConfig``) inside a cocotb
+    test on the Verilog boards; returns the summary the test wrote to ``out/summary.json``."""
+    from cosim.cocotb_run import REPO_ROOT, run_cocotb
+
+    out = Path(out).resolve()
+    out.mkdir(parents=True, exist_ok=True)
+    summary_path = out / "summary.json"
+    summary_path.unlink(missing_ok=True)
+    source = write_system_verilog()
+    options = {"out": str(out), "resume": resume, "plots": plots, "progress": progress,
+               "clock_hz": clock_hz if clock_hz is not None else clock_hz_default()}
+    run_cocotb(
+        sources=[source], toplevel=TOPLEVEL, test_module="cosim.cocotb_backend", test_dir=REPO_ROOT,
+        build_name=build_name, testcase="online_experiment", waves=waves,
+        extra_env={CONFIG_ENV: json.dumps(config.to_dict()), OPTIONS_ENV: json.dumps(options)},
+    )
+    return json.loads(summary_path.read_text())
+
+
+def main_from_args(args, config) -> int:
+    """``python -m cosim.online --backend cocotb ...``: launch the simulation, print its summary."""
+    from cosim.online import summary_table
+
+    summary = run_online_cocotb(config, args.out, resume=args.resume, plots=not args.no_plots,
+                                progress=not args.no_progress)
+    print(summary_table(summary))
+    print(hardware_line(summary))
+    print(f"wrote {Path(args.out) / 'summary.json'}")
+    return 0
+
+
+def hardware_line(summary: dict) -> str:
+    """One line: the boards' time at the FPGA clock beside the software times."""
+    hw = summary.get("hardware")
+    if not hw:
+        return ""
+    mhz = hw["clock_hz"] / 1e6
+    ref = hw.get("reference_evaluator_time_s")
+    return (f"EHW boards at {mhz:g} MHz: evaluator {hw['evaluator_time_s']:.3f} s "
+            f"({hw['evaluator_cycles']:,} cycles, {hw['controllers_evaluated']:,} controllers), "
+            f"controller {hw['controller_time_s']:.4f} s"
+            + (f"; reference model in software: {ref:.3f} s" if ref is not None else "")
+            + f"; simulation wall time {summary['wall_time_s']:.1f} s")
