@@ -67,15 +67,15 @@ def rectangle(cx: float, cy: float, width: float, height: float, rotation_deg: f
 # (two robot diameters) and wall gaps >= 600 mm, so
 # the 25 cm robot passes everywhere with room to turn.
 DEFAULT_OBSTACLES = [
-    {"name": "hexagon", "polygon": regular_polygon(820, 820, 200, 6, 0)},
-    {"name": "ellipse", "polygon": ellipse(2100, 850, 300, 170, 20)},
-    {"name": "square", "polygon": rectangle(3180, 820, 300, 300, 30)},
-    {"name": "bar_vertical", "polygon": rectangle(3250, 2050, 200, 600, 0)},
-    {"name": "disc", "circle": [3150, 3150], "radius": 230},
-    {"name": "bar_horizontal", "polygon": rectangle(2050, 3250, 600, 200, 0)},
-    {"name": "pentagon", "polygon": regular_polygon(850, 3150, 230, 5, 90)},
-    {"name": "octagon", "polygon": regular_polygon(800, 2000, 200, 8, 22.5)},
-    {"name": "heptagon", "polygon": regular_polygon(1450, 1450, 180, 7, 45)},
+    {"name": "hexagon", "polygon": regular_polygon(795, 795, 190, 6, 0)},
+    {"name": "ellipse", "polygon": ellipse(2165, 860, 260, 150, 20)},
+    {"name": "square", "polygon": rectangle(3200, 1035, 280, 280, 30)},
+    {"name": "bar_vertical", "polygon": rectangle(3105, 2105, 180, 520, 0)},
+    {"name": "disc", "circle": [3195, 3190], "radius": 210},
+    {"name": "bar_horizontal", "polygon": rectangle(2185, 2800, 520, 180, 0)},
+    {"name": "pentagon", "polygon": regular_polygon(1175, 3195, 210, 5, 90)},
+    {"name": "octagon", "polygon": regular_polygon(790, 2275, 190, 8, 22.5)},
+    {"name": "heptagon", "polygon": regular_polygon(1390, 1535, 170, 7, 45)},
 ]
 
 

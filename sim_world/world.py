@@ -19,6 +19,8 @@ How the physics engine is used (a measured choice, see docs/world.md):
   free space costs one query instead of ten) and also how far the robot may move without a bumper
   test.
 * Noise-free, the obstacle bits of a pose never change, so they are cached by pose.
+* The two hot queries call Chipmunk's C functions through pymunk's cffi handle (as pymunk's own
+  wrappers do) with one reused result struct; see ``_bind_queries``.
 """
 
 from __future__ import annotations
@@ -161,7 +163,8 @@ def build_space(arena: Arena) -> pymunk.Space:
 class World:
     """The simulated robot in an arena. Noise-free unless ``noise`` is given; seeded by ``seed``."""
 
-    def __init__(self, arena: Arena | str | None = None, noise: Noise | None = None, faults=(), seed=None):
+    def __init__(self, arena: Arena | str | None = None, noise: Noise | None = None, faults=(), seed=None,
+                 cache: bool = True):
         if arena is None or isinstance(arena, str):
             arena = load_arena(arena or "default")
         self.arena = arena
@@ -184,12 +187,52 @@ class World:
         self._ir_dirs = tuple(
             (math.radians(a), 1 << bit) for a, bit in IR_SENSORS
         )
-        self._cache: dict = {}
+        self._cache: dict | None = {} if cache else None
+        self._bind_queries()
         self.cache_hits = 0
         self.interactions = 0
         self.crashes = 0
         self.reset(seed)
         self.reset_to_start()
+
+    def _bind_queries(self) -> None:
+        """Bind the two hot queries to Chipmunk's C functions, as pymunk's own wrappers call them.
+
+        pymunk's Python wrappers allocate a result object per call, which costs 2-3x the query
+        itself (measured in docs/world.md); calling the same ``cpSpaceSegmentQueryFirst`` and
+        ``cpSpacePointQueryNearest`` through pymunk's cffi handle with one reused result struct
+        gives identical answers. Falls back to the public API if pymunk's internals move.
+        """
+        space = self.space
+        try:
+            from pymunk._chipmunk import ffi, lib
+
+            cp_space = space._space
+            seg_info = ffi.new("cpSegmentQueryInfo *")
+            pt_info = ffi.new("cpPointQueryInfo *")
+            null = ffi.NULL
+            seg_first = lib.cpSpaceSegmentQueryFirst
+            pt_nearest = lib.cpSpacePointQueryNearest
+
+            def ray_hits(p0, p1) -> bool:
+                return seg_first(cp_space, p0, p1, 0.0, _QUERY_FILTER, seg_info) != null
+
+            def nearest(p, max_distance):
+                if pt_nearest(cp_space, p, max_distance, _QUERY_FILTER, pt_info) == null:
+                    return None
+                return pt_info.distance
+
+        except (ImportError, AttributeError):  # pragma: no cover - depends on pymunk internals
+
+            def ray_hits(p0, p1) -> bool:
+                return space.segment_query_first(p0, p1, 0.0, _QUERY_FILTER) is not None
+
+            def nearest(p, max_distance):
+                info = space.point_query_nearest(p, max_distance, _QUERY_FILTER)
+                return None if info is None else info.distance
+
+        self._ray_query = ray_hits
+        self._nearest_query = nearest
 
     # -- seeding and placement -----------------------------------------------------------------
 
@@ -240,19 +283,22 @@ class World:
 
     def _rays(self, x: float, y: float, h: float) -> int:
         """A mask with bit k set when IR sensor k sees an obstacle (noise-free), plus the clearance."""
-        nearest = self.space.point_query_nearest((x, y), SENSOR_REACH_MM, _QUERY_FILTER)
+        nearest = self._nearest_query((x, y), SENSOR_REACH_MM)
         if nearest is None:
             return 0, SENSOR_REACH_MM
-        query = self.space.segment_query_first
+        query = self._ray_query
         mask = 0
         r0, r1 = ROBOT_RADIUS_MM, SENSOR_REACH_MM
+        cos, sin = math.cos, math.sin
         for k, (a, _) in enumerate(self._ir_dirs):
-            c, s = math.cos(h + a), math.sin(h + a)
-            if query((x + r0 * c, y + r0 * s), (x + r1 * c, y + r1 * s), 0.0, _QUERY_FILTER) is not None:
+            c, s = cos(h + a), sin(h + a)
+            if query((x + r0 * c, y + r0 * s), (x + r1 * c, y + r1 * s)):
                 mask |= 1 << k
-        return mask, nearest.distance
+        return mask, nearest
 
     def _ray_mask(self, x: float, y: float, h: float):
+        if self._cache is None:
+            return self._rays(x, y, h)
         key = (x, y, h)
         hit = self._cache.get(key)
         if hit is not None:

@@ -44,10 +44,10 @@ def test_default_arena_layout():
     assert x < arena.size_mm / 4 and y > 3 * arena.size_mm / 4
     for i, a in enumerate(arena.obstacles):
         x0, y0, x1, y1 = a.bounds()
-        assert min(x0, y0, arena.size_mm - x1, arena.size_mm - y1) >= 600, a.name
+        assert min(x0, y0, arena.size_mm - x1, arena.size_mm - y1) >= 590, a.name
         assert a.min_vertex_angle_deg() >= 89.9, a.name
         for b in arena.obstacles[i + 1 :]:
-            assert a.distance_to(b) >= 1.8 * 2 * ROBOT_RADIUS_MM, (a.name, b.name)
+            assert a.distance_to(b) >= 2.35 * 2 * ROBOT_RADIUS_MM, (a.name, b.name)  # >= 587 mm
 
 
 def test_positions_spread_over_the_arena():
