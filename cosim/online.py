@@ -94,6 +94,16 @@ class OnlineConfig:
     # after a time-out or loop, download the fittest individual whose motion in the blamed state
     # differs from the failed one (the model cannot see a real-world loop; see docs/online.md)
     escape: bool = False
+    # NOT the normative model update (SPEC section 7), an option: after a time-out or loop, the
+    # blamed (state, motion) is written to the world model as a crash (a "virtual crash"), so the
+    # fitness sees the real-world loop. See docs/online.md for the measurements.
+    mark_loops: bool = False
+    # The world-model update. "most_recent" is SPEC section 7 (normative, the default). The
+    # option "most_frequent" (NOT the SPEC) writes to the evaluator the most often observed next
+    # state of each (state, motion) (ties: the most recent), crash entries still permanent: one
+    # noisy observation then no longer erases a loop seen fifty times (docs/online.md).
+    model_update: str = "most_recent"
+    max_interactions: int = 0  # > 0: end the lifetime there even short of n_targets (a budget)
     # adaptation: blind IR bit `blind_bit` (stuck at 0) once `blind_after_target` targets are reached
     blind_bit: int | None = None
     blind_after_target: int | None = None
@@ -152,6 +162,7 @@ class OnlineRun:
         # --- lifetime counters (rebuilt by replay on resume) ---
         self.motions: list[int] = []  # every motion executed, in order (the replay log)
         self.state_log: list[int] = []  # the state observed after each motion
+        self.outcomes: dict[tuple[int, int], dict[int, int]] = {}  # (s, a) -> {s2: count}
         self.interactions = 0
         self.targets = 0
         self.leg_steps = 0  # steps on the current leg since the last (re)start of execution
@@ -184,8 +195,15 @@ class OnlineRun:
         if self.mirror.crash[s, motion]:
             self.known_crash_repeats += 1
         step = self.world.step(motion)
-        self.evaluator.observe(s, motion, step.state, step.crashed)
-        self.mirror.observe(s, motion, step.state, step.crashed)
+        written = step.state
+        if self.config.model_update == "most_frequent" and not step.crashed:
+            seen = self.outcomes.setdefault((s, motion), {})
+            seen[step.state] = seen.get(step.state, 0) + 1
+            top = max(seen.values())
+            if seen[step.state] < top:
+                written = next(s2 for s2, n in seen.items() if n == top)
+        self.evaluator.observe(s, motion, written, step.crashed)
+        self.mirror.observe(s, motion, written, step.crashed)
         self.transitions.add((s, motion, step.state, step.crashed))
         self.motions.append(motion)
         self.state_log.append(step.state)
@@ -193,7 +211,7 @@ class OnlineRun:
         self.leg_steps += 1
         self.window.append((s, motion))
         self.curve_states.append(self.mirror.n_states)
-        self.curve_transitions.append(len(self.transitions))
+        self.curve_transitions.append(self.mirror.n_transitions)
         x, y, _ = self.world.pose
         self.state = step.state
         if step.crashed:
@@ -205,7 +223,7 @@ class OnlineRun:
                 self.target_log.append({
                     "target": self.targets, "interactions": self.interactions,
                     "generations": self.generations, "world_states": self.mirror.n_states,
-                    "transitions": len(self.transitions),
+                    "transitions": self.mirror.n_transitions,
                 })
             if self.config.blind_bit is not None and self.targets == self.config.blind_after_target:
                 self.world.faults = (Fault(at_step=self.world.interactions, bit=self.config.blind_bit),)
@@ -222,6 +240,12 @@ class OnlineRun:
         else:
             self.since_closer += 1
         return step
+
+    def _mark(self, state: int, motion: int) -> None:
+        """A virtual crash: (state, motion) recorded as a crash in the world model (no motion is
+        executed, so no interaction is counted)."""
+        self.evaluator.observe(state, motion, state, True)
+        self.mirror.observe(state, motion, state, True)
 
     def _execute(self) -> tuple[str, int, int, int]:
         """One execution phase: (reason, steps, failing state, failing motion); reason is
@@ -248,6 +272,8 @@ class OnlineRun:
                 return "timeout", steps, *self._blame()
             if cfg.loop_window and self.since_closer >= cfg.loop_window:
                 return "loop", steps, *self._blame()
+            if cfg.max_interactions and self.interactions >= cfg.max_interactions:
+                return "budget", steps, s, a
 
     def _blame(self) -> tuple[int, int]:
         """The (state, motion) a time-out or loop is blamed on: the most frequent recent pair in a
@@ -267,6 +293,9 @@ class OnlineRun:
             "state": int(state), "motion": int(motion),
             "world_states": self.mirror.n_states, "model_transitions": self.mirror.n_transitions,
         }
+        if cfg.mark_loops and reason in ("timeout", "loop") and state & OBSTACLE_MASK:
+            self._mark(state, motion)
+            record["marked"] = True
         if cfg.targeted and self.best_rows is not None and state & OBSTACLE_MASK:
             avoid = {motion} | set(np.flatnonzero(self.mirror.crash[state]).tolist())
             mutants = targeted_mutants(self.rng, self.best_rows, state, avoid, cfg.targeted)
@@ -326,7 +355,7 @@ class OnlineRun:
                 if stop_after_phases is not None and len(self.phases) >= stop_after_phases:
                     break
                 reason, steps, s, a = self._execute()
-                if reason == "done":
+                if reason in ("done", "budget"):
                     break
                 self._learn(reason, steps, s, a)
                 self.wall_time_s += time.perf_counter() - t0
@@ -364,8 +393,14 @@ class OnlineRun:
         """Continue from ``state_dict`` output: replay the motions through world and evaluator."""
         if self.interactions:
             raise RuntimeError("load_state needs a fresh OnlineRun")
+        marks: dict[int, list[tuple[int, int]]] = {}
+        for p in d["phases"]:
+            if p.get("marked"):
+                marks.setdefault(p["interactions"], []).append((p["state"], p["motion"]))
         for motion in bytes.fromhex(d["motions"]):
             self._advance(motion, record=False)
+            for s, a in marks.get(self.interactions, ()):
+                self._mark(s, a)
         if self.interactions != d["interactions"] or self.targets != d["targets"]:
             raise CheckpointError(
                 f"replaying the checkpoint's motions gave {self.interactions} interactions and "
@@ -399,8 +434,10 @@ class OnlineRun:
             "generations": self.generations,
             "genetic_operations": self.genetic_operations,
             "world_states": self.mirror.n_states,
-            "transitions": len(self.transitions),
-            "model_transitions": self.mirror.n_transitions,
+            # As the off-line summary: transitions = distinct (state, motion) pairs met (the
+            # world model's entries); transition_outcomes = distinct (s, a, s2, crashed) seen.
+            "transitions": self.mirror.n_transitions,
+            "transition_outcomes": len(self.transitions),
             "targets_reached": self.targets,
             "best_genome": None if self.best_rows is None else hex_from_rows(self.best_rows),
             "wall_time_s": round(self.wall_time_s, 3),
@@ -570,7 +607,7 @@ def config_from_args(args) -> OnlineConfig:
         seed=args.seed, arena=args.arena, n_targets=args.targets + args.continue_past_64,
         population=args.population, generations_per_phase=args.generations_per_phase,
         max_leg_steps=args.max_leg_steps, loop_window=args.loop_window, targeted=args.targeted,
-        escape=args.escape,
+        escape=args.escape, mark_loops=args.mark_loops, model_update=args.model_update,
         blind_bit=args.blind_bit, blind_after_target=args.blind_after_target,
     )
 
@@ -594,6 +631,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--loop-window", type=int, default=d.loop_window)
     p.add_argument("--targeted", type=int, default=d.targeted)
     p.add_argument("--escape", action=argparse.BooleanOptionalAction, default=d.escape)
+    p.add_argument("--mark-loops", action=argparse.BooleanOptionalAction, default=d.mark_loops,
+                   help="record a time-out/loop as a crash of the blamed (state, motion) (not SPEC)")
+    p.add_argument("--model-update", choices=("most_recent", "most_frequent"), default=d.model_update,
+                   help="world-model update: most_recent = SPEC section 7; most_frequent = option")
     p.add_argument("--no-plots", action="store_true")
     p.add_argument("--no-progress", action="store_true")
     return p
