@@ -53,10 +53,14 @@ def test_other_seed_gives_another_lifetime():
     assert a.motions != b.motions
 
 
-def test_resume_equals_uninterrupted(tmp_path):
-    config = OnlineConfig(seed=5, **SMALL)
+@pytest.mark.parametrize("options", [{}, {"mark_loops": True, "escape": True, "targeted": 10,
+                                          "model_update": "most_frequent", "loop_window": 15}])
+def test_resume_equals_uninterrupted(tmp_path, options):
+    config = OnlineConfig(seed=5, **{**SMALL, **options})
     whole = make_run(config, out=tmp_path / "whole").run()
     assert len(whole.phases) >= 3, "the test needs a run with several learning phases"
+    if options:  # the replay must also restore the virtual crashes written after loop stops
+        assert any(p.get("marked") for p in whole.phases[2:])
     part = make_run(config, out=tmp_path / "part").run(stop_after_phases=2)
     assert len(part.phases) == 2 and part.targets < config.n_targets
     resumed = make_run(config, out=tmp_path / "part", resume=True)
