@@ -116,11 +116,14 @@ def plot_trajectory(arena: Arena, trajectory, path, title: str | None = None, nu
         if event == "crash":
             crashes.append((x, y))
     flush()
+    if trajectory:
+        x, y, _h, _e = trajectory[-1]
+        ax.plot(x, y, "*", ms=10, color="black", label="end", zorder=8)
     if relocs:
         ax.plot(*zip(*relocs), "s", ms=3, color="tab:blue", label=f"relocations ({len(relocs)})")
     if crashes:
         ax.plot(*zip(*crashes), "x", ms=6, mew=1.5, color="red", label=f"crashes ({len(crashes)})", zorder=8)
-    if relocs or crashes:
+    if trajectory:
         ax.legend(loc="lower right", fontsize=8)
     ax.set_title(title or f"trajectory, {len(trajectory)} poses", fontsize=10)
     path = Path(path)
