@@ -73,7 +73,7 @@ def run_course(
     states.add(s)
     if record:
         x, y, h = world.pose
-        traj.append((x, y, h, "start"))
+        traj.append((x, y, h, ""))
     leg = 0
     steps = 0
     while res.targets_reached < n_targets:

@@ -256,3 +256,32 @@ def test_state_sector_bits(empty):
     for heading, sector in [(0.0, 0), (PI / 2, 3), (PI, 2), (-PI / 2, 1)]:
         s = world.place((1000.0, 2000.0, heading))
         assert s >> SECTOR_SHIFT == sector
+
+
+def test_cache_gives_the_same_states():
+    rng = np.random.default_rng(9)
+    motions = rng.integers(0, 8, size=600).tolist()
+    runs = []
+    for cache in (True, False):
+        world = World(load_arena(), cache=cache)
+        runs.append([world.step(m) for m in motions] + [world.step(m) for m in motions])
+    assert runs[0] == runs[1]
+
+
+def test_course_runner_records_and_counts():
+    from sim_world.baseline import baseline_table
+    from sim_world.course import run_course
+
+    world = World(load_arena())
+    res = run_course(world, baseline_table(), 500, n_targets=3, record=True)
+    assert res.targets_reached == 3 and res.steps == sum(res.leg_steps) == world.interactions
+    events = [e for *_, e in res.trajectory]
+    assert events.count("target") == 3 and events.count("relocate") == 2
+    assert set(events) <= {"", "crash", "target", "relocate"}
+    assert len(res.trajectory) == res.steps + 1 + 2
+    assert all(len(t) == 4 for t in res.transitions)
+    # a leg limit of 1 times out at once; a table driving into a wall crashes
+    assert run_course(world, baseline_table(), 1).timed_out
+    world.place((300.0, 2000.0, math.pi))
+    crash = run_course(world, np.zeros(256, dtype=np.uint8), 500, start="here")
+    assert crash.crashed and crash.targets_reached == 0
