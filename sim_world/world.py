@@ -25,7 +25,9 @@ How the physics engine is used (a measured choice, see docs/world.md):
 
 from __future__ import annotations
 
+import functools
 import math
+import operator
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -63,6 +65,11 @@ IR_SENSORS: tuple[tuple[float, int], ...] = (
     (180.0, X_BACK),
 )
 N_IR = len(IR_SENSORS)
+# IR sensor mask (bit k = sensor k sees something) -> the six obstacle bits.
+_MASK_TO_BITS = tuple(
+    functools.reduce(operator.or_, (1 << bit for k, (_, bit) in enumerate(IR_SENSORS) if mask >> k & 1), 0)
+    for mask in range(1 << N_IR)
+)
 SENSOR_REACH_MM = ROBOT_RADIUS_MM + IR_RANGE_MM  # from the robot's centre
 SECTOR_HALF_WIDTH_DEG = 45.0  # front = -45..+45 degrees (SPEC section 4)
 
@@ -72,7 +79,9 @@ _ROTATION = tuple(math.radians(float(r)) for r in MOTION_ROTATION_DEG)
 
 _TWO_PI = 2.0 * math.pi
 _QUERY_FILTER = pymunk.ShapeFilter()
-_CACHE_LIMIT = 1 << 20  # poses whose noise-free obstacle bits are remembered
+# Poses whose noise-free IR readings are remembered (~350 bytes each); the cache is cleared
+# when full. With motor noise no pose repeats, so such worlds do not cache at all.
+_CACHE_LIMIT = 250_000
 
 
 def _wrap(angle: float) -> float:
@@ -187,7 +196,8 @@ class World:
         self._ir_dirs = tuple(
             (math.radians(a), 1 << bit) for a, bit in IR_SENSORS
         )
-        self._cache: dict | None = {} if cache else None
+        motor_noise = self.noise is not None and (self.noise.translation_sd or self.noise.rotation_sd_deg)
+        self._cache: dict | None = {} if cache and not motor_noise else None
         self._bind_queries()
         self.cache_hits = 0
         self.interactions = 0
@@ -334,11 +344,7 @@ class World:
                     seen ^= 1
                 noisy |= seen << k
             mask = noisy
-        bits = 0
-        if mask:
-            for k, (_, bit) in enumerate(self._ir_dirs):
-                if (mask >> k) & 1:
-                    bits |= bit
+        bits = _MASK_TO_BITS[mask]
         for f in self.faults:
             if self.interactions >= f.at_step:
                 bits = (bits | (1 << f.bit)) if f.value else (bits & ~(1 << f.bit))
