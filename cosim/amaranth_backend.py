@@ -18,27 +18,15 @@ is kept (``reference_time_s``) to print the software time beside the hardware ti
 
 from __future__ import annotations
 
-import os
 import time
 
 import numpy as np
 
 from cosim.boards import EvalCounts, ReferenceControllerBoard, ReferenceEvaluatorBoard, register_backend
+from cosim.hardware_time import CLOCK_HZ
 
-CLOCK_HZ = 12e6  # the iCEBreaker's oscillator: the FPGA clock the hardware time is given at
 IDLE_S = 1e-12  # the serving testbench's wait between jobs: far below a clock period
-
-
-def clock_hz_default() -> float:
-    """The FPGA clock for hardware times: ``EHW_CLOCK_HZ`` from the environment, else 12 MHz."""
-    value = os.environ.get("EHW_CLOCK_HZ", "")
-    try:
-        hz = float(value) if value else CLOCK_HZ
-    except ValueError:
-        raise ValueError(f"EHW_CLOCK_HZ must be a frequency in Hz, got {value!r}") from None
-    if not hz > 0:
-        raise ValueError(f"EHW_CLOCK_HZ must be positive, got {value!r}")
-    return hz
+SIM_PERIOD_S = 1 / CLOCK_HZ  # the simulated clock (the hardware time uses EHW_CLOCK_HZ)
 
 
 class BoardMismatch(AssertionError):
@@ -82,7 +70,7 @@ class AmaranthSystem:
         self.pins = AmaranthPins(self.dut)
         self.host = SystemHost(self.pins)
         self.sim = Simulator(self.dut)
-        self.sim.add_clock(1 / CLOCK_HZ)
+        self.sim.add_clock(SIM_PERIOD_S)
         self.sim.add_testbench(self._serve)
         self._job = None
         self._finished = False
@@ -283,26 +271,6 @@ class HDLEvaluatorBoard:
                     raise BoardMismatch(f"evaluator board: {name} of controller {i} is {got[i]}, the "
                                         f"reference gives {want[i]} (model of {self.host.model.n_states} states)")
         return result
-
-
-def hardware_figures(controller, evaluator, clock_hz: float | None = None) -> dict:
-    """Cycle counts of an HDL board pair and the time the boards would take at ``clock_hz``
-    (default ``EHW_CLOCK_HZ`` or 12 MHz), beside the reference model's software time."""
-    hz = clock_hz_default() if clock_hz is None else float(clock_hz)
-    ctl, ev = int(controller.cycles), int(evaluator.cycles)
-    transfer = int(getattr(evaluator, "transfer_cycles", 0))
-    out = {
-        "clock_hz": hz,
-        "controller_cycles": ctl,
-        "evaluator_cycles": ev,
-        "host_link_cycles": transfer,
-        "controller_time_s": ctl / hz,
-        "evaluator_time_s": ev / hz,
-        "controllers_evaluated": int(getattr(evaluator, "evaluations", 0)),
-    }
-    if getattr(evaluator, "reference", None) is not None:
-        out["reference_evaluator_time_s"] = round(evaluator.reference_time_s, 6)
-    return out
 
 
 def make_amaranth_boards(reflex: bool = True, check: bool = True, vcd: str | None = None):

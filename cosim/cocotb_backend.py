@@ -34,13 +34,14 @@ import re
 import sys
 from pathlib import Path
 
-from cosim.amaranth_backend import (BoardLog, HDLControllerBoard, HDLEvaluatorBoard, clock_hz_default,
-                                    hardware_figures)
+from cosim.amaranth_backend import BoardLog, HDLControllerBoard, HDLEvaluatorBoard
+from cosim.hardware_time import clock_hz_default, hardware_line
 from cosim.boards import register_backend
 
 TOPLEVEL = "system_top"
 CONFIG_ENV = "EHW_ONLINE_CONFIG"
 OPTIONS_ENV = "EHW_ONLINE_OPTIONS"
+P_MAX_ENV = "EHW_SYSTEM_P_MAX"  # the population RAM depth of the Verilog under test
 CLOCK_PERIOD_NS = 10  # simulated clock; the hardware time uses the FPGA clock (EHW_CLOCK_HZ)
 
 _active_system = None  # the CocotbSystem of the running test (inside the simulator only)
@@ -88,12 +89,12 @@ class CocotbSystem:
     """The system top under cocotb: ``call(job, *args)`` runs a ``SystemHost`` coroutine from the
     experiment's thread (``cocotb.task.resume``)."""
 
-    def __init__(self, dut):
-        from hdl.system_top import SystemHost
+    def __init__(self, dut, p_max: int | None = None):
+        from hdl.system_top import P_MAX, SystemHost
 
         self.dut = dut
         self.pins = CocotbPins(dut)
-        self.host = SystemHost(self.pins)
+        self.host = SystemHost(self.pins, p_max=p_max or int(os.environ.get(P_MAX_ENV, P_MAX)))
 
     async def start(self) -> None:
         """Clock, synchronous reset, then the evaluator's RAM sweep (Boot + Clear)."""
@@ -146,8 +147,6 @@ def _experiment(config: dict, options: dict) -> dict:
                    resume=bool(options.get("resume")), progress=bool(options.get("progress")))
     run.run()
     summary = write_results(run, out, plots=bool(options.get("plots")))
-    summary["hardware"] = hardware_figures(run.controller, run.evaluator, options.get("clock_hz"))
-    (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
     run.controller.log.write(out / "board_log.json", run.motions)
     print(summary_table(summary), file=sys.stderr)
     return summary
@@ -189,15 +188,19 @@ def icarus_time_zero_fix(verilog: str) -> str:
     return _TRIGGER.sub(lambda mt: f"{mt.group(0)}\n{mt.group(1)}initial #1 {mt.group(2)}= 1;", verilog)
 
 
-def write_system_verilog(out_dir: Path | str | None = None) -> Path:
-    """``system_top.v`` for Icarus (regenerated each time: a few seconds)."""
+def write_system_verilog(out_dir: Path | str | None = None, p_max: int | None = None) -> Path:
+    """``system_top.v`` for Icarus (regenerated each time: a few seconds); ``p_max`` other than
+    the default gives a smaller population RAM (tests: set ``EHW_SYSTEM_P_MAX`` to match)."""
+    from amaranth.back import verilog
+
     from cosim.cocotb_run import SIM_BUILD
-    from hdl.generate import verilog_text
+    from hdl.system_top import SystemTop
 
     out = Path(out_dir) if out_dir else SIM_BUILD / "verilog"
     out.mkdir(parents=True, exist_ok=True)
     path = out / f"{TOPLEVEL}.v"
-    path.write_text(icarus_time_zero_fix(verilog_text(TOPLEVEL)))
+    top = SystemTop() if p_max is None else SystemTop(p_max=p_max)
+    path.write_text(icarus_time_zero_fix(verilog.convert(top, name=TOPLEVEL, emit_src=False)))
     return path
 
 
@@ -213,12 +216,13 @@ def run_online_cocotb(config, out: Path | str, *, resume: bool = False, plots: b
     summary_path = out / "summary.json"
     summary_path.unlink(missing_ok=True)
     source = write_system_verilog()
-    options = {"out": str(out), "resume": resume, "plots": plots, "progress": progress,
-               "clock_hz": clock_hz if clock_hz is not None else clock_hz_default()}
+    options = {"out": str(out), "resume": resume, "plots": plots, "progress": progress}
+    env = {CONFIG_ENV: json.dumps(config.to_dict()), OPTIONS_ENV: json.dumps(options),
+           "EHW_CLOCK_HZ": str(clock_hz if clock_hz is not None else clock_hz_default())}
     run_cocotb(
         sources=[source], toplevel=TOPLEVEL, test_module="cosim.cocotb_backend", test_dir=REPO_ROOT,
         build_name=build_name, testcase="online_experiment", waves=waves,
-        extra_env={CONFIG_ENV: json.dumps(config.to_dict()), OPTIONS_ENV: json.dumps(options)},
+        extra_env=env,
     )
     return json.loads(summary_path.read_text())
 
@@ -230,20 +234,7 @@ def main_from_args(args, config) -> int:
     summary = run_online_cocotb(config, args.out, resume=args.resume, plots=not args.no_plots,
                                 progress=not args.no_progress)
     print(summary_table(summary))
-    print(hardware_line(summary))
+    if "hardware" in summary and "evaluator EHW" not in summary_table(summary):
+        print(hardware_line(summary))
     print(f"wrote {Path(args.out) / 'summary.json'}")
     return 0
-
-
-def hardware_line(summary: dict) -> str:
-    """One line: the boards' time at the FPGA clock beside the software times."""
-    hw = summary.get("hardware")
-    if not hw:
-        return ""
-    mhz = hw["clock_hz"] / 1e6
-    ref = hw.get("reference_evaluator_time_s")
-    return (f"EHW boards at {mhz:g} MHz: evaluator {hw['evaluator_time_s']:.3f} s "
-            f"({hw['evaluator_cycles']:,} cycles, {hw['controllers_evaluated']:,} controllers), "
-            f"controller {hw['controller_time_s']:.4f} s"
-            + (f"; reference model in software: {ref:.3f} s" if ref is not None else "")
-            + f"; simulation wall time {summary['wall_time_s']:.1f} s")

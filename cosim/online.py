@@ -456,6 +456,9 @@ class OnlineRun:
             out["at_64_targets"] = at64
         if self.blinded_at is not None:
             out["adaptation"] = adaptation_figures(self.target_log, cfg.blind_after_target, self.blinded_at)
+        from cosim.hardware_time import hardware_figures  # EHW time at the FPGA clock (issue 7)
+
+        out["hardware"] = hardware_figures(self)
         return out
 
 
@@ -513,6 +516,10 @@ def summary_table(summary: dict) -> str:
         lines.append(f"adaptation: IR bit {summary['config']['blind_bit']} blinded after target "
                      f"{ad['blinded_after_target']}: {ad['interactions_for_next_targets']} interactions "
                      f"for the next 8 targets")
+    if summary.get("hardware"):
+        from cosim.hardware_time import hardware_line
+
+        lines.append(hardware_line(summary))
     return "\n".join(lines)
 
 

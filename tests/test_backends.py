@@ -1,23 +1,141 @@
-"""The three board backends (SPEC section 9): the system top under cocotb on the shared cases, and
-the short on-line run that must be identical in every backend."""
+"""The three board backends (SPEC section 9).
+
+- The system top (controller EHW + evaluator EHW + population streamer) under cocotb on the
+  shared evaluator cases and controller vectors (tests/cocotb_tb/tb_system.py).
+- The cycle model of a population stream (``cosim.hardware_time.stream_cycles``) against the
+  simulated ``pop_cycles`` (Amaranth's simulator).
+- Equivalence: one short on-line run (one obstacle, 3 targets, population 16) on the reference,
+  Amaranth and cocotb backends gives the identical sequence of motions, downloaded controllers,
+  evaluation results, interactions, generations and counts; the two HDL backends report the same
+  clock cycles, equal to the cycle model.
+"""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
+import numpy as np
 import pytest
+
+from cosim.online import OnlineConfig, OnlineRun, make_run
 
 TB_DIR = Path(__file__).resolve().parent / "cocotb_tb"
 
 pytestmark = pytest.mark.filterwarnings("ignore::amaranth.hdl.UnusedElaboratable")
 
+# Short enough for `make test` (a few seconds per backend), long enough for several learning
+# phases with crashes and time-outs, targets and relocations.
+SHORT = OnlineConfig(seed=3, arena="one_obstacle", n_targets=3, population=16, generations_per_phase=2,
+                     max_leg_steps=60)
+# Summary keys that legitimately differ between backends.
+BACKEND_KEYS = {"backend", "wall_time_s", "board_cycles", "hardware"}
+
+
+def comparable(summary: dict) -> dict:
+    return {k: v for k, v in summary.items() if k not in BACKEND_KEYS}
+
+
+@pytest.fixture(scope="module")
+def reference_run():
+    from cosim.amaranth_backend import LoggedBoards
+    from cosim.boards import make_boards
+
+    boards = LoggedBoards(*make_boards("reference"))
+    run = OnlineRun(SHORT, boards.controller, boards.evaluator, backend="reference").run()
+    return run.summary(), boards.log.to_dict(run.motions)
+
+
+@pytest.fixture(scope="module")
+def amaranth_run():
+    run = make_run(SHORT, "amaranth").run()
+    return run.summary(), run.controller.log.to_dict(run.motions)
+
+
+@pytest.fixture(scope="module")
+def cocotb_run(tmp_path_factory):
+    from cosim.cocotb_backend import run_online_cocotb
+
+    out = tmp_path_factory.mktemp("cocotb_online")
+    summary = run_online_cocotb(SHORT, out, build_name="system_top_online_test")
+    return summary, json.loads((out / "board_log.json").read_text())
+
+
+def test_short_run_exercises_the_loop(reference_run):
+    summary, log = reference_run
+    assert summary["targets_reached"] == SHORT.n_targets
+    assert summary["learning_phases"] >= 3
+    assert len(log["downloads"]) == summary["learning_phases"] + 1  # the random start, then one a phase
+    assert len(log["evaluations"]) == summary["generations"]
+    assert len(set(log["evaluations"])) > 1
+
+
+@pytest.mark.parametrize("backend", ["amaranth", pytest.param("cocotb", marks=pytest.mark.cocotb)])
+def test_backend_is_identical_to_reference(backend, reference_run, request):
+    summary, log = request.getfixturevalue(f"{backend}_run")
+    ref_summary, ref_log = reference_run
+    assert summary["backend"] == backend
+    assert log["motions"] == ref_log["motions"]
+    assert log["downloads"] == ref_log["downloads"]
+    assert log["evaluations"] == ref_log["evaluations"]
+    assert comparable(summary) == comparable(ref_summary)
+
+
+@pytest.mark.cocotb
+def test_hdl_backends_count_the_same_cycles(amaranth_run, cocotb_run, reference_run):
+    (ama, _), (coco, _), (ref, _) = amaranth_run, cocotb_run, reference_run
+    assert ama["board_cycles"] == coco["board_cycles"]
+    assert ama["board_cycles"]["evaluator"] > 0 and ama["board_cycles"]["controller"] > 0
+    for hw in (ama["hardware"], coco["hardware"]):
+        assert hw["evaluator_cycles_source"] == "simulated"
+        assert hw["evaluator_cycles"] == hw["evaluator_cycles_model"] == ref["hardware"]["evaluator_cycles"]
+    assert ref["hardware"]["evaluator_cycles_source"] == "model"
+    assert coco["hardware"]["evaluator_time_s"] == pytest.approx(coco["hardware"]["evaluator_cycles"] / 12e6)
+
+
+def test_stream_cycle_model_matches_the_hdl():
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from cosim.amaranth_backend import AmaranthSystem
+    from cosim.hardware_time import stream_cycles
+    from test_evaluator_cases import random_model, specific_rows
+
+    system = AmaranthSystem()
+    host = system.host
+    rng = np.random.default_rng(5)
+    for n_pool, population in ((0, 3), (12, 4), (40, 2), (70, 3)):
+        system.call(host.clear)
+        n_states = 0
+        if n_pool:
+            model = random_model(rng, n_pool=n_pool, n_obs=3 * n_pool, p_crash=0.2)
+            system.call(host.write_model, model)
+            n_states = model.n_states
+        _, cycles = system.call(host.evaluate, specific_rows(rng, population))
+        assert cycles == stream_cycles(population, n_states), (n_states, population)
+    assert stream_cycles(1000, 10) == stream_cycles(512, 10) + stream_cycles(488, 10)
+
+
+def test_stream_cycle_model_errors():
+    from cosim.hardware_time import stream_cycles
+
+    with pytest.raises(ValueError, match="-1"):
+        stream_cycles(-1, 3)
+
+
+def test_cocotb_backend_outside_the_simulator_says_how_to_start_it():
+    from cosim.boards import make_boards
+
+    with pytest.raises(RuntimeError, match="inside the simulator"):
+        make_boards("cocotb")
+
 
 @pytest.mark.cocotb
 def test_cocotb_system_top_matches_reference(tmp_path):
+    from cosim.cocotb_backend import P_MAX_ENV, write_system_verilog
     from cosim.cocotb_run import run_cocotb
-    from cosim.cocotb_backend import write_system_verilog
 
-    src = write_system_verilog(tmp_path)
+    src = write_system_verilog(tmp_path, p_max=16)
     n_tests, _ = run_cocotb(sources=[src], toplevel="system_top", test_module="tb_system",
-                            test_dir=TB_DIR, build_name="system_top_tb")
+                            test_dir=TB_DIR, build_name="system_top_tb", extra_env={P_MAX_ENV: "16"})
     assert n_tests == 3

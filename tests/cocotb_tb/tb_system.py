@@ -64,7 +64,7 @@ async def streams_and_observe(dut):
         mirror.observe(s, a, s2, crashed)
     assert dut.ev_n_states.value.to_unsigned() == mirror.n_states
     host.set_reflex(True)
-    pop = specific_rows(rng, host.p_max + 7)  # two streams
+    pop = specific_rows(rng, 2 * host.p_max + 3)  # three streams
     counts, _ = await host.evaluate(pop)
     assert counts == expected(pop, mirror, True)
     counts, cycles = await host.evaluate(pop[:1])  # one controller

@@ -1,0 +1,147 @@
+"""HDL-in-the-loop figures: simulated clock cycles per second of the two HDL backends, on the
+system top (controller EHW + evaluator EHW + population streamer) driven by ``SystemHost``.
+
+    .venv/bin/python -m benchmarks bench_hdl
+
+The workload is the learning phase's: a world model of ``N_STATES`` states (random, fixed seed),
+one population of ``POPULATION`` controllers streamed through the evaluator (written, one
+``go``, one wait, results read back), then ``INTERACTIONS`` execution-phase steps (a motion and
+an observation each) through the board interface from a blocking thread (cocotb: ``bridge`` /
+``resume``, as the experiment runs). Cycles/s counts every clock edge the call spent, transfers
+included. The cocotb figures come from a cocotb test in this module run by ``run_cocotb``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+N_STATES = 84  # the paper's |S| at the 64th target
+POPULATION = 100
+INTERACTIONS = 300
+RESULT_ENV = "EHW_BENCH_OUT"
+
+
+def _workload(seed: int = 2026):
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
+    from test_evaluator_cases import random_model, specific_rows
+
+    rng = np.random.default_rng(seed)
+    model = random_model(rng, n_pool=N_STATES, n_obs=4 * N_STATES, p_crash=0.15)
+    pop = specific_rows(rng, POPULATION)
+    steps = [(int(rng.integers(256)), int(rng.integers(8)), int(rng.integers(256)), bool(rng.random() < 0.1))
+             for _ in range(INTERACTIONS)]
+    return model, pop, steps
+
+
+def _measure(system, controller, evaluator, model, pop, steps) -> dict:
+    """Blocking: the board calls, timed (``system.call`` runs a SystemHost job)."""
+    host = system.host
+    system.call(host.write_model, model)
+    t0 = time.perf_counter()
+    edges0 = host.evaluator_cycles + host.transfer_cycles
+    counts = evaluator.evaluate(pop)
+    t_eval = time.perf_counter() - t0
+    eval_edges = host.evaluator_cycles + host.transfer_cycles - edges0
+    controller.load(pop[0])
+    t0 = time.perf_counter()
+    edges0 = host.controller_cycles + host.transfer_cycles
+    for s, a, s2, crashed in steps:
+        controller.motion(s)
+        evaluator.observe(s, a, s2, crashed)
+    t_steps = time.perf_counter() - t0
+    step_edges = host.controller_cycles + host.transfer_cycles - edges0
+    return {
+        "n_states": model.n_states,
+        "eval_cycles": int(counts.cycles),
+        "eval_cycles_per_s": eval_edges / t_eval,
+        "controllers_per_s": len(pop) / t_eval,
+        "interactions_per_s": len(steps) / t_steps,
+        "step_cycles_per_s": step_edges / t_steps,
+    }
+
+
+# -- cocotb: a test run inside the simulator ------------------------------------------------------------
+
+try:
+    import cocotb
+except ImportError:  # pragma: no cover
+    cocotb = None
+
+if cocotb is not None:
+
+    @cocotb.test()
+    async def throughput(dut):
+        from cocotb.task import bridge
+
+        from cosim.amaranth_backend import HDLControllerBoard, HDLEvaluatorBoard
+        from cosim.cocotb_backend import CocotbSystem
+
+        system = CocotbSystem(dut)
+        await system.start()
+        controller = HDLControllerBoard(system, check=False)
+        evaluator = HDLEvaluatorBoard(system, check=False)
+        figures = await bridge(_measure)(system, controller, evaluator, *_workload())
+        Path(os.environ[RESULT_ENV]).write_text(json.dumps(figures))
+
+
+def cocotb_figures() -> dict:
+    from cosim.cocotb_backend import write_system_verilog
+    from cosim.cocotb_run import REPO_ROOT, run_cocotb
+
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "bench.json"
+        src = write_system_verilog(tmp)
+        run_cocotb(sources=[src], toplevel="system_top", test_module="benchmarks.bench_hdl",
+                   test_dir=REPO_ROOT, build_name="system_top_bench", testcase="throughput",
+                   extra_env={RESULT_ENV: str(out)}, waves=False)
+        return json.loads(out.read_text())
+
+
+def amaranth_figures() -> dict:
+    from cosim.amaranth_backend import AmaranthSystem, HDLControllerBoard, HDLEvaluatorBoard
+
+    system = AmaranthSystem()
+    controller = HDLControllerBoard(system, check=False)
+    evaluator = HDLEvaluatorBoard(system, check=False)
+    return _measure(system, controller, evaluator, *_workload())
+
+
+def reference_figures() -> dict:
+    from cosim.boards import make_boards
+
+    model, pop, steps = _workload()
+    _, evaluator = make_boards("reference")
+    evaluator.model = model.copy()
+    evaluator.evaluate(pop)  # warm up
+    t0 = time.perf_counter()
+    for _ in range(10):
+        evaluator.evaluate(pop)
+    return {"controllers_per_s": 10 * len(pop) / (time.perf_counter() - t0)}
+
+
+def run() -> dict:
+    coco = cocotb_figures()
+    ama = amaranth_figures()
+    ref = reference_figures()
+    return {
+        "cocotb_cycles_per_s": round(coco["eval_cycles_per_s"]),
+        "amaranth_cycles_per_s": round(ama["eval_cycles_per_s"]),
+        "cocotb_controllers_per_s": round(coco["controllers_per_s"], 1),
+        "amaranth_controllers_per_s": round(ama["controllers_per_s"], 1),
+        "reference_controllers_per_s": round(ref["controllers_per_s"]),
+        "cocotb_interactions_per_s": round(coco["interactions_per_s"], 1),
+        "amaranth_interactions_per_s": round(ama["interactions_per_s"], 1),
+        "hdl_bench_model_states": coco["n_states"],
+        "hdl_bench_eval_cycles_per_controller": round(coco["eval_cycles"] / POPULATION, 2),
+    }
+
+
+if __name__ == "__main__":
+    print(json.dumps(run(), indent=1))

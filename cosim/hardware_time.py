@@ -1,0 +1,94 @@
+"""Hardware time: what the EHW boards would spend at the FPGA clock, beside the software time.
+
+The HDL backends count clock cycles (``cycles`` of the boards, ``hdl.system_top.SystemHost``).
+The evaluator's cost is also known exactly without simulating it: a stream of P controllers on a
+model of N states takes :func:`stream_cycles` (P, N) cycles (checked against the simulated
+``pop_cycles`` by tests/test_backends.py), so the reference backend reports the same hardware time
+from its learning phases. The clock is ``EHW_CLOCK_HZ`` (default 12 MHz, the iCEBreaker's).
+"""
+
+from __future__ import annotations
+
+import os
+
+CLOCK_HZ = 12e6  # iCEBreaker oscillator
+ROWS = 50  # row writes per controller (ga.genome.N_ROWS)
+P_MAX = 512  # controllers per stream (hdl.system_top.P_MAX)
+
+
+def clock_hz_default() -> float:
+    """The FPGA clock for hardware times: ``EHW_CLOCK_HZ`` from the environment, else 12 MHz."""
+    value = os.environ.get("EHW_CLOCK_HZ", "")
+    try:
+        hz = float(value) if value else CLOCK_HZ
+    except ValueError:
+        raise ValueError(f"EHW_CLOCK_HZ must be a frequency in Hz, got {value!r}") from None
+    if not hz > 0:
+        raise ValueError(f"EHW_CLOCK_HZ must be positive, got {value!r}")
+    return hz
+
+
+def stream_cycles(population: int, n_states: int, p_max: int = P_MAX) -> int:
+    """Cycles (``pop_cycles``, summed over streams of at most ``p_max``) to evaluate ``population``
+    controllers on a model of ``n_states`` states: per stream of P, the ``go`` edge, 50 row writes
+    of the first controller, then one controller every max(50, N + 2) cycles (the next one's rows
+    are written while this one is evaluated, N + 1 cycles), the last one's N + 1 cycles, and the
+    edge that raises ``pop_done``: 53 + N + (P - 1) max(50, N + 2)."""
+    if population < 0 or n_states < 0:
+        raise ValueError(f"population and n_states must be >= 0, got {population!r}, {n_states!r}")
+    total = 0
+    for first in range(0, population, p_max):
+        p = min(p_max, population - first)
+        total += 3 + ROWS + n_states + (p - 1) * max(ROWS, n_states + 2)
+    return total
+
+
+def modeled_evaluator_cycles(phases: list[dict], population: int, generations_per_phase: int) -> int:
+    """Evaluator cycles of an on-line run from its phase records (|S| is constant in a phase)."""
+    return sum(generations_per_phase * stream_cycles(population, int(p["world_states"])) for p in phases)
+
+
+def hardware_figures(run, clock_hz: float | None = None) -> dict:
+    """The ``hardware`` entry of an on-line run's summary (``cosim.online.OnlineRun``)."""
+    hz = clock_hz_default() if clock_hz is None else float(clock_hz)
+    cfg = run.config
+    modeled = modeled_evaluator_cycles(run.phases, cfg.population, cfg.generations_per_phase)
+    evaluator, controller = run.evaluator, run.controller
+    measured = int(getattr(evaluator, "cycles", 0))
+    out = {
+        "clock_hz": hz,
+        "evaluator_cycles": measured or modeled,
+        "evaluator_cycles_source": "simulated" if measured else "model",
+        "evaluator_time_s": round((measured or modeled) / hz, 6),
+        "controllers_evaluated": run.genetic_operations,
+    }
+    if measured:
+        out["evaluator_cycles_model"] = modeled  # equal to the simulated count (the model is exact)
+    ctl = int(getattr(controller, "cycles", 0))
+    if ctl:
+        out["controller_cycles"] = ctl
+        out["controller_time_s"] = round(ctl / hz, 6)
+        out["host_link_cycles"] = int(getattr(evaluator, "transfer_cycles", 0))
+    software = getattr(evaluator, "reference_time_s", None)
+    if software is None:
+        software = getattr(evaluator, "time_s", None)
+    if software is not None:
+        out["reference_evaluator_time_s"] = round(float(software), 6)
+    return out
+
+
+def hardware_line(summary: dict) -> str:
+    """One line for the summary table: the evaluator at the FPGA clock beside the software time."""
+    hw = summary.get("hardware")
+    if not hw:
+        return ""
+    mhz = hw["clock_hz"] / 1e6
+    ref = hw.get("reference_evaluator_time_s")
+    text = (f"evaluator EHW at {mhz:g} MHz: {hw['evaluator_time_s']:.3f} s "
+            f"({hw['evaluator_cycles']:,} cycles, {hw['evaluator_cycles_source']}, "
+            f"{hw['controllers_evaluated']:,} controllers)")
+    if ref is not None:
+        text += f"; reference evaluator in software: {ref:.3f} s"
+    if "controller_time_s" in hw:
+        text += f"; controller EHW {hw['controller_cycles']:,} cycles"
+    return text
