@@ -97,20 +97,43 @@ def _evaluate_one(task) -> Evaluation:
 class Evaluator:
     """Evaluates a population serially (``workers`` <= 1) or over a process pool, same result."""
 
+    CACHE_SIZE = 4096  # truth tables remembered (about 200 generations of 20)
+
     def __init__(self, arena: str, max_leg_steps: int, n_targets: int = N_TARGETS, workers: int = 1):
         self.arena, self.max_leg_steps, self.n_targets = arena, max_leg_steps, n_targets
         self.workers = max(int(workers), 1)
         self._pool = None
+        self._cache: dict[bytes, Evaluation] = {}
+        self.simulated_steps = 0
         if self.workers > 1:
             # spawn: workers import only what they need, no fork of a threaded parent.
             ctx = multiprocessing.get_context("spawn")
             self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=ctx)
 
     def __call__(self, pop: np.ndarray) -> list[Evaluation]:
-        tasks = [(self.arena, self.max_leg_steps, self.n_targets, rows) for rows in pop]
+        """One Evaluation per genome, in order.
+
+        A run depends on the genome only through its truth table (reflex included), and the
+        world is deterministic, so a genome whose table was evaluated recently (the elite, a
+        child whose mutations hit only off rows) gets that stored Evaluation back instead of
+        being driven again: the same result, and `interactions` still counts it (paper: every
+        individual of every generation). ``simulated_steps`` counts what was really driven.
+        """
+        keys = [t.tobytes() for t in truth_tables(pop, reflex=True)]
+        todo = {}
+        for key, rows in zip(keys, pop):
+            if key not in self._cache and key not in todo:
+                todo[key] = rows
+        tasks = [(self.arena, self.max_leg_steps, self.n_targets, rows) for rows in todo.values()]
         if self._pool is None:
-            return [_evaluate_one(t) for t in tasks]
-        return list(self._pool.map(_evaluate_one, tasks))
+            fresh = [_evaluate_one(t) for t in tasks]
+        else:
+            fresh = list(self._pool.map(_evaluate_one, tasks))
+        if len(self._cache) + len(fresh) > self.CACHE_SIZE:
+            self._cache.clear()
+        self._cache.update(zip(todo, fresh))
+        self.simulated_steps += sum(e.steps for e in fresh)
+        return [self._cache[key] for key in keys]
 
     def close(self) -> None:
         if self._pool is not None:
@@ -150,6 +173,7 @@ def _fresh_state(ga: GeneticAlgorithm) -> dict:
     return {
         "ga": ga.state_dict(),
         "interactions": 0,
+        "simulated_interactions": 0,
         "world_states": [],
         "transitions": [],
         "history": [],
@@ -208,7 +232,9 @@ def run_offline(
         with Evaluator(arena, max_leg_steps, n_targets, workers) as evaluator:
             while not finished() and ga.generation < generations_cap:
                 pop = ga.ask()
+                driven = evaluator.simulated_steps
                 evals = evaluator(pop)
+                state["simulated_interactions"] += evaluator.simulated_steps - driven
                 fitness = fitness_vector(evals)
                 ga.tell(fitness, failures=[e.failure_state for e in evals])
                 i = int(np.argmax(fitness))  # the same individual tell() took as best
@@ -275,6 +301,8 @@ def _summary(seed, state, config, ga_config: GAConfig, workers, reached_all) -> 
         "generations": generations,
         "genetic_operations": generations * ga_config.population,
         "interactions": state["interactions"],
+        # Steps really simulated: identical truth tables are not driven twice (Evaluator).
+        "simulated_interactions": state["simulated_interactions"],
         "world_states": len(state["world_states"]),
         # The paper's transitions (at most 256 x 8 = 2048): distinct (state, motion) pairs met.
         "transitions": len({(t[0], t[1]) for t in state["transitions"]}),

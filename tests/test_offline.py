@@ -9,7 +9,7 @@ from cosim.offline import default_ga_config, main, run_offline
 
 SMALL = dict(arena="one_obstacle", max_leg_steps=80, n_targets=64, progress=False, plots=False,
              transfer_trials=0, ga_config=default_ga_config(population=8, tournament=3))
-VOLATILE = ("wall_time_s", "workers", "figures")
+VOLATILE = ("wall_time_s", "workers", "figures", "simulated_interactions")  # cache is per session
 
 
 def _stable(summary):
@@ -19,6 +19,7 @@ def _stable(summary):
 def _checkpoint_state(out):
     state = json.loads((out / "checkpoint.json").read_text())["state"]
     state.pop("wall_time_s")
+    state.pop("simulated_interactions")
     return state
 
 
@@ -90,3 +91,20 @@ def test_command_line_writes_summary_figures_and_transfer(tmp_path, capsys):
     assert (out / "fig5_trajectory.png").stat().st_size > 1000
     assert (out / "fig6_best_per_generation.png").stat().st_size > 1000
     assert "wrote" in capsys.readouterr().out
+
+
+def test_evaluator_cache_gives_the_driven_result():
+    import numpy as np
+
+    from cosim.offline import Evaluator
+    from ga.model_free import evaluate
+    from ga.operators import random_population
+    from sim_world.world import World
+
+    pop = random_population(np.random.default_rng(0), 6)
+    pop = np.concatenate([pop, pop[:3]])  # repeated genomes are driven once
+    with Evaluator("one_obstacle", 80) as evaluator:
+        got = evaluator(pop)
+        assert evaluator.simulated_steps == sum(e.steps for e in got[:6])
+    world = World("one_obstacle")
+    assert got == [evaluate(world, g, 80) for g in pop]
