@@ -89,15 +89,21 @@ class OnlineConfig:
     # execution phase
     max_leg_steps: int = 500  # leg time-out: steps on one leg since the phase began
     loop_window: int = 0  # > 0: stop when no new closest approach to the ball for this many steps
+    # > 0: stop when the robot has entered one obstacle state (from another state) this many times
+    # since its last new closest approach to the ball (an oscillation, e.g. F/F -> F/L -> F/F)
+    loop_reentries: int = 0
     # learning phase
     targeted: int = 0  # state-targeted mutants of the best written into the population per phase
     # after a time-out or loop, download the fittest individual whose motion in the blamed state
     # differs from the failed one (the model cannot see a real-world loop; see docs/online.md)
     escape: bool = False
     # NOT the normative model update (SPEC section 7), an option: after a time-out or loop, the
-    # blamed (state, motion) is written to the world model as a crash (a "virtual crash"), so the
-    # fitness sees the real-world loop. See docs/online.md for the measurements.
-    mark_loops: bool = False
+    # blamed (state, motion) is written to the world model so that the fitness sees the real-world
+    # loop: "self" = as a transition back to the same state (the fitness counts it as a loop; the
+    # next real observation overwrites it), "crash" = as a crash (permanent). "off" = the SPEC.
+    # See docs/online.md for the measurements.
+    mark_loops: str = "off"
+    mark_limit: int = 8  # no mark in a state that already has this many crash entries
     # The world-model update. "most_recent" is SPEC section 7 (normative, the default). The
     # option "most_frequent" (NOT the SPEC) writes to the evaluator the most often observed next
     # state of each (state, motion) (ties: the most recent), crash entries still permanent: one
@@ -175,6 +181,7 @@ class OnlineRun:
         self.window = deque(maxlen=max(config.loop_window, 64))  # recent (state, motion)
         self.closest = float("inf")
         self.since_closer = 0
+        self.entries: Counter = Counter()  # obstacle state -> entries since the last closest approach
         self.blinded_at: int | None = None
         # --- evolution counters (saved in the checkpoint) ---
         self.generations = 0
@@ -231,21 +238,28 @@ class OnlineRun:
             self.state = self.world.relocate((self.targets - 1) % N_POSITIONS)
             self.leg_steps = 0
             self.closest, self.since_closer = float("inf"), 0
+            self.entries.clear()
             self.window.clear()
             self.trajectory.append((*self.world.pose[:2], "relocate"))
         else:
             self.trajectory.append((x, y, ""))
         if step.distance_mm < self.closest - 1e-9:
             self.closest, self.since_closer = step.distance_mm, 0
+            self.entries.clear()
         else:
             self.since_closer += 1
+            if self.state != s and self.state & OBSTACLE_MASK:
+                self.entries[self.state] += 1
         return step
 
     def _mark(self, state: int, motion: int) -> None:
-        """A virtual crash: (state, motion) recorded as a crash in the world model (no motion is
-        executed, so no interaction is counted)."""
-        self.evaluator.observe(state, motion, state, True)
-        self.mirror.observe(state, motion, state, True)
+        """Write a real-world loop into the world model (option ``mark_loops``): (state, motion)
+        leads back to state ("self") or crashes ("crash"). No motion is executed: no interaction."""
+        crash = self.config.mark_loops == "crash"
+        self.evaluator.observe(state, motion, state, crash)
+        self.mirror.observe(state, motion, state, crash)
+        if not crash and self.config.model_update == "most_frequent":
+            self.outcomes.pop((state, motion), None)  # the loop is the outcome to remember now
 
     def _execute(self) -> tuple[str, int, int, int]:
         """One execution phase: (reason, steps, failing state, failing motion); reason is
@@ -254,6 +268,7 @@ class OnlineRun:
         steps = 0
         self.leg_steps = 0
         self.closest, self.since_closer = float("inf"), 0
+        self.entries.clear()
         while True:
             s = self.state
             a = self.controller.motion(s)
@@ -271,6 +286,8 @@ class OnlineRun:
             if self.leg_steps >= cfg.max_leg_steps:
                 return "timeout", steps, *self._blame()
             if cfg.loop_window and self.since_closer >= cfg.loop_window:
+                return "loop", steps, *self._blame()
+            if cfg.loop_reentries and self.entries and max(self.entries.values()) >= cfg.loop_reentries:
                 return "loop", steps, *self._blame()
             if cfg.max_interactions and self.interactions >= cfg.max_interactions:
                 return "budget", steps, s, a
@@ -293,7 +310,8 @@ class OnlineRun:
             "state": int(state), "motion": int(motion),
             "world_states": self.mirror.n_states, "model_transitions": self.mirror.n_transitions,
         }
-        if cfg.mark_loops and reason in ("timeout", "loop") and state & OBSTACLE_MASK:
+        if cfg.mark_loops != "off" and reason in ("timeout", "loop") and state & OBSTACLE_MASK \
+                and self.mirror.crash[state].sum() < cfg.mark_limit:
             self._mark(state, motion)
             record["marked"] = True
         if cfg.targeted and self.best_rows is not None and state & OBSTACLE_MASK:
@@ -613,7 +631,8 @@ def config_from_args(args) -> OnlineConfig:
     return OnlineConfig(
         seed=args.seed, arena=args.arena, n_targets=args.targets + args.continue_past_64,
         population=args.population, generations_per_phase=args.generations_per_phase,
-        max_leg_steps=args.max_leg_steps, loop_window=args.loop_window, targeted=args.targeted,
+        max_leg_steps=args.max_leg_steps, loop_window=args.loop_window,
+        loop_reentries=args.loop_reentries, targeted=args.targeted, mark_limit=args.mark_limit,
         escape=args.escape, mark_loops=args.mark_loops, model_update=args.model_update,
         blind_bit=args.blind_bit, blind_after_target=args.blind_after_target,
     )
@@ -636,12 +655,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--generations-per-phase", type=int, default=d.generations_per_phase)
     p.add_argument("--max-leg-steps", type=int, default=d.max_leg_steps)
     p.add_argument("--loop-window", type=int, default=d.loop_window)
+    p.add_argument("--loop-reentries", type=int, default=d.loop_reentries)
     p.add_argument("--targeted", type=int, default=d.targeted)
     p.add_argument("--escape", action=argparse.BooleanOptionalAction, default=d.escape)
-    p.add_argument("--mark-loops", action=argparse.BooleanOptionalAction, default=d.mark_loops,
-                   help="record a time-out/loop as a crash of the blamed (state, motion) (not SPEC)")
+    p.add_argument("--mark-loops", choices=("off", "self", "crash"), default=d.mark_loops,
+                   help="write a time-out/loop into the world model at the blamed (state, motion): "
+                        "as a self-transition or a crash (not SPEC; off = SPEC)")
     p.add_argument("--model-update", choices=("most_recent", "most_frequent"), default=d.model_update,
                    help="world-model update: most_recent = SPEC section 7; most_frequent = option")
+    p.add_argument("--mark-limit", type=int, default=d.mark_limit)
     p.add_argument("--no-plots", action="store_true")
     p.add_argument("--no-progress", action="store_true")
     return p
