@@ -60,10 +60,12 @@ def _offline(task: dict) -> dict:
 
 
 def _baseline(task: dict) -> dict:
-    from sim_world.baseline import run_baseline
-    from sim_world.world import DEFAULT_NOISE
+    from sim_world.baseline import baseline_table
+    from sim_world.course import DEFAULT_MAX_LEG_STEPS, run_course
+    from sim_world.world import DEFAULT_NOISE, World
 
-    res = run_baseline(task["arena"], DEFAULT_NOISE, task["seed"])
+    world = World(task["arena"], noise=DEFAULT_NOISE, seed=task["seed"])
+    res = run_course(world, baseline_table(), DEFAULT_MAX_LEG_STEPS, n_targets=64)
     return {"interactions": res.steps, "targets_reached": res.targets_reached, "crashed": res.crashed,
             "timed_out": res.timed_out, "world_states": len(res.states),
             "transitions": len({(t[0], t[1]) for t in res.transitions}),
