@@ -88,7 +88,7 @@ class OnlineConfig:
     replace_rate: float = 0.005
     # execution phase
     max_leg_steps: int = 500  # leg time-out: steps on one leg since the phase began
-    loop_window: int = 0  # > 0: stop when no new closest approach to the ball for this many steps
+    loop_window: int = 100  # > 0: stop when no new closest approach to the ball for this many steps
     # > 0: stop when the robot has entered one obstacle state (from another state) this many times
     # since its last new closest approach to the ball (an oscillation, e.g. F/F -> F/L -> F/F)
     loop_reentries: int = 0
@@ -96,7 +96,7 @@ class OnlineConfig:
     targeted: int = 0  # state-targeted mutants of the best written into the population per phase
     # after a time-out or loop, download the fittest individual whose motion in the blamed state
     # differs from the failed one (the model cannot see a real-world loop; see docs/online.md)
-    escape: bool = False
+    escape: bool = True
     # NOT the normative model update (SPEC section 7), an option: after a time-out or loop, the
     # blamed (state, motion) is written to the world model so that the fitness sees the real-world
     # loop: "self" = as a transition back to the same state (the fitness counts it as a loop; the
@@ -109,7 +109,7 @@ class OnlineConfig:
     # state of each (state, motion) (ties: the most recent), crash entries still permanent: one
     # noisy observation then no longer erases a loop seen fifty times (docs/online.md).
     model_update: str = "most_recent"
-    max_interactions: int = 0  # > 0: end the lifetime there even short of n_targets (a budget)
+    max_interactions: int = 100_000  # end the lifetime there even short of n_targets (0: no limit)
     # adaptation: blind IR bit `blind_bit` (stuck at 0) once `blind_after_target` targets are reached
     blind_bit: int | None = None
     blind_after_target: int | None = None
@@ -551,18 +551,21 @@ def write_plots(run: OnlineRun, out: Path) -> list[Path]:
 
     out.mkdir(parents=True, exist_ok=True)
     paths = []
-    fig, ax = plt.subplots(figsize=(7, 7))
+    title = (f"On-line model-based lifetime (seed {run.config.seed}): {run.targets} targets, "
+             f"{run.interactions:,} interactions")
+    path = out / "fig9_trajectory.png"
     try:
         from sim_world.render import plot_trajectory
 
-        plot_trajectory(run.world.arena, run.trajectory, ax=ax)
+        plot_trajectory(run.world.arena, [(x, y, 0.0, event) for x, y, event in run.trajectory], path,
+                        title=title)
     except (ImportError, TypeError):
+        fig, ax = plt.subplots(figsize=(7, 7))
         _plot_trajectory_fallback(ax, run)
-    ax.set_title(f"On-line model-based lifetime (seed {run.config.seed}): "
-                 f"{run.targets} targets, {run.interactions:,} interactions")
-    paths.append(out / "fig9_trajectory.png")
-    fig.savefig(paths[-1], dpi=110, bbox_inches="tight")
-    plt.close(fig)
+        ax.set_title(title)
+        fig.savefig(path, dpi=110, bbox_inches="tight")
+        plt.close(fig)
+    paths.append(path)
 
     def fig10(limit: int | None, name: str, title: str):
         log = [t for t in run.target_log if limit is None or t["target"] <= limit]
@@ -633,6 +636,7 @@ def config_from_args(args) -> OnlineConfig:
         population=args.population, generations_per_phase=args.generations_per_phase,
         max_leg_steps=args.max_leg_steps, loop_window=args.loop_window,
         loop_reentries=args.loop_reentries, targeted=args.targeted, mark_limit=args.mark_limit,
+        max_interactions=args.max_interactions,
         escape=args.escape, mark_loops=args.mark_loops, model_update=args.model_update,
         blind_bit=args.blind_bit, blind_after_target=args.blind_after_target,
     )
@@ -657,6 +661,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--loop-window", type=int, default=d.loop_window)
     p.add_argument("--loop-reentries", type=int, default=d.loop_reentries)
     p.add_argument("--targeted", type=int, default=d.targeted)
+    p.add_argument("--max-interactions", type=int, default=d.max_interactions,
+                   help="end the lifetime after this many interactions even short of the targets (0: never)")
     p.add_argument("--escape", action=argparse.BooleanOptionalAction, default=d.escape)
     p.add_argument("--mark-loops", choices=("off", "self", "crash"), default=d.mark_loops,
                    help="write a time-out/loop into the world model at the blamed (state, motion): "
