@@ -97,9 +97,9 @@ def _evaluate_one(task) -> Evaluation:
 class Evaluator:
     """Evaluates a population serially (``workers`` <= 1) or over a process pool, same result."""
 
-    CACHE_SIZE = 4096  # truth tables remembered (about 200 generations of 20)
-
-    def __init__(self, arena: str, max_leg_steps: int, n_targets: int = N_TARGETS, workers: int = 1):
+    def __init__(self, arena: str, max_leg_steps: int, n_targets: int = N_TARGETS, workers: int = 1,
+                 cache_size: int = 4096):
+        self.cache_size = cache_size  # truth tables remembered (about 200 generations of 20)
         self.arena, self.max_leg_steps, self.n_targets = arena, max_leg_steps, n_targets
         self.workers = max(int(workers), 1)
         self._pool = None
@@ -129,11 +129,13 @@ class Evaluator:
             fresh = [_evaluate_one(t) for t in tasks]
         else:
             fresh = list(self._pool.map(_evaluate_one, tasks))
-        if len(self._cache) + len(fresh) > self.CACHE_SIZE:
+        found = {key: self._cache[key] for key in keys if key in self._cache}
+        found.update(zip(todo, fresh))
+        if len(self._cache) + len(fresh) > self.cache_size:
             self._cache.clear()
         self._cache.update(zip(todo, fresh))
         self.simulated_steps += sum(e.steps for e in fresh)
-        return [self._cache[key] for key in keys]
+        return [found[key] for key in keys]
 
     def close(self) -> None:
         if self._pool is not None:

@@ -108,3 +108,8 @@ def test_evaluator_cache_gives_the_driven_result():
         assert evaluator.simulated_steps == sum(e.steps for e in got[:6])
     world = World("one_obstacle")
     assert got == [evaluate(world, g, 80) for g in pop]
+    # A full cache is emptied without losing this call's hits.
+    more = np.concatenate([pop[:3], random_population(np.random.default_rng(1), 3)])
+    with Evaluator("one_obstacle", 80, cache_size=7) as small:
+        assert small(pop[:6]) == got[:6]
+        assert small(more) == [evaluate(world, g, 80) for g in more]
