@@ -6,9 +6,9 @@ over the world state, so it runs exactly like an evolved controller (``run_cours
 
 How it was made: the rules of :func:`baseline_motion` were written by hand; alone they reach the
 target on most legs but fall into a few reactive loops and crash now and then under noise.
-:func:`tune_table` then changed single entries (a seeded local search that runs the 64 legs
-noise-free and at DEFAULT_NOISE with seeds 0..5 and keeps a change that does not add failed legs
-or interactions), and changes that did not matter were reverted. The result, ``TUNED_TABLE``, is
+:func:`tune_table` then changed single entries (a seeded local search over the legs of
+``TUNING_RUNS``, keeping a change that does not add failed legs or interactions), and changes
+that did not matter were reverted. The result, ``TUNED_TABLE``, is
 the shipped baseline; ``rules_table()`` is the hand-written starting point.
 
 ``python -m sim_world.baseline`` runs it through the 64 legs noise-free and at DEFAULT_NOISE,
@@ -94,14 +94,14 @@ def rules_table() -> np.ndarray:
 
 
 # The shipped baseline: the rules above with the entries of some states changed by a seeded local
-# search (`tune_table`) over the 64 legs of the default arena, noise-free and at DEFAULT_NOISE
-# (seeds 0..5); changes that made no difference were then reverted to the rule. One digit per
+# search (`tune_table`) over every leg of TUNING_RUNS; changes that made no difference were then
+# reverted to the rule. One digit per
 # state 0..255, the motion code. The reflex states (obstacle bits 0) are never changed.
 TUNED_TABLE = (
-    "0405424254534242445332620453424242554242005342420553424202534242"
-    "2253424242504246215342422253424222571242025342422253424222534242"
-    "2253421272334242225342423257424222534242505342422253424222534242"
-    "3452424234334242045346420453424232534242355342420253424242534242"
+    "0405424254534242445712620453424242534242005342420553420202534242"
+    "2253424242504242215342422253424222571242025342422253424222534242"
+    "2253424272334242225342423253423222564242525302422253524222534242"
+    "3452424234334242045346420553424232534242355342420253424242534242"
 )
 
 
@@ -116,26 +116,27 @@ def baseline_table() -> np.ndarray:
     return table
 
 
-def tune_table(table: np.ndarray, runs, seconds: float, rng: np.random.Generator, arena="default",
+def tune_table(table: np.ndarray, runs, seconds: float, rng: np.random.Generator,
                max_leg_steps: int = DEFAULT_MAX_LEG_STEPS, log=print) -> np.ndarray:
     """Local search: change the motion of one non-reflex state met at the end of a failed leg
-    (or any state once none fails); keep the change when (failed legs, interactions) does not get
-    worse. ``runs`` is a list of (noise, seed); every leg starts afresh from its own pose."""
-    arena = load_arena(arena) if isinstance(arena, str) else arena
+    (or of any state once none fails); keep the change when (failed legs, interactions) does not
+    get worse. ``runs`` is a list of (arena name, noise, seed); every leg starts afresh from its
+    own pose. Returns the improved table."""
+    arenas = {name: load_arena(name) for name, _, _ in runs}
 
     def evaluate(tab):
         fails, steps = [], 0
-        for noise, seed in runs:
-            world = World(arena, noise=noise, seed=seed)
+        for name, noise, seed in runs:
+            world = World(arenas[name], noise=noise, seed=seed)
             for leg in range(-1, N_POSITIONS - 1):
                 res = run_course(world, tab, max_leg_steps, n_targets=1, start="start" if leg < 0 else leg)
                 steps += res.steps
                 if res.targets_reached < 1:
-                    fails.append((noise, seed, leg))
+                    fails.append((name, noise, seed, leg))
         return len(fails), steps, fails
 
-    def last_states(tab, noise, seed, leg):
-        world = World(arena, noise=noise, seed=seed)
+    def last_states(tab, name, noise, seed, leg):
+        world = World(arenas[name], noise=noise, seed=seed)
         s = world.reset_to_start() if leg < 0 else world.relocate(leg)
         seen = []
         for _ in range(max_leg_steps):
@@ -160,12 +161,28 @@ def tune_table(table: np.ndarray, runs, seconds: float, rng: np.random.Generator
         if res[:2] <= best[:2]:
             table, best = cand, res
             log(f"{time.perf_counter() - t0:6.0f} s: {best[0]} failed legs, {best[1]} interactions")
+    # Revert the changes that do not matter (neutral drift), to stay close to the rules.
+    rules = rules_table()
+    for s in np.flatnonzero(rules != table):
+        cand = table.copy()
+        cand[s] = rules[s]
+        res = evaluate(cand)
+        if res[0] <= best[0] and res[1] <= best[1] * 1.002:
+            table, best = cand, res
+    log(f"final: {best[0]} failed legs, {best[1]} interactions, {int((rules != table).sum())} entries off the rules")
     return table
+
+
+TUNING_RUNS = (
+    [("default", None, 0)]
+    + [("default", DEFAULT_NOISE, s) for s in range(10)]
+    + [("one_obstacle", None, 0), ("one_obstacle", DEFAULT_NOISE, 0), ("empty", None, 0)]
+)
 
 
 def run_baseline(arena="default", noise=None, seed: int = 0, max_leg_steps: int = DEFAULT_MAX_LEG_STEPS,
                  record: bool = False):
-    """Run the baseline through the course; returns the CourseResult."""
+    """Run the baseline through the course of 64 legs; returns the CourseResult."""
     world = World(arena if not isinstance(arena, str) else load_arena(arena), noise=noise, seed=seed)
     return run_course(world, baseline_table(), max_leg_steps, n_targets=N_POSITIONS, record=record)
 
@@ -189,11 +206,10 @@ def main(argv=None) -> None:
     parser.add_argument("--max-leg-steps", type=int, default=DEFAULT_MAX_LEG_STEPS)
     parser.add_argument("--out", type=Path, default=Path("results"))
     parser.add_argument("--tune", type=float, default=0.0, metavar="SECONDS",
-                        help="re-run the local search from the hand-written rules and print the table")
+                        help="continue the local search from the shipped table and print the new table")
     args = parser.parse_args(argv)
     if args.tune:
-        runs = [(None, 0)] + [(DEFAULT_NOISE, s) for s in range(6)]
-        table = tune_table(rules_table(), runs, args.tune, np.random.default_rng(0), args.arena, args.max_leg_steps)
+        table = tune_table(baseline_table(), TUNING_RUNS, args.tune, np.random.default_rng(0), args.max_leg_steps)
         print("".join(str(int(m)) for m in table))
         return
     args.out.mkdir(parents=True, exist_ok=True)

@@ -26,3 +26,9 @@ def test_baseline_reaches_64_targets_noise_free():
 def test_baseline_reaches_64_targets_at_default_noise():
     res = run_baseline("default", DEFAULT_NOISE, seed=0)
     assert res.targets_reached == 64 and not res.crashed and not res.timed_out
+
+
+def test_baseline_in_the_simpler_arenas():
+    for arena in ("one_obstacle", "empty"):
+        res = run_baseline(arena)
+        assert res.targets_reached == 64 and not res.crashed and not res.timed_out, arena
