@@ -18,6 +18,7 @@ is kept (``reference_time_s``) to print the software time beside the hardware ti
 
 from __future__ import annotations
 
+import os
 import time
 
 import numpy as np
@@ -225,19 +226,55 @@ class HDLControllerBoard:
         return motion
 
 
-class HDLEvaluatorBoard:
-    """EvaluatorBoard over the same system; ``cycles`` counts the evaluator's own cycles."""
+SAMPLE_ENV = "EHW_HDL_SAMPLE"
 
-    def __init__(self, system, reflex: bool = True, check: bool = True, log: BoardLog | None = None):
+
+def sample_default() -> int:
+    """Controllers per evaluation that the HDL evaluates when sampling (``EHW_HDL_SAMPLE``; 0:
+    all of them, the default)."""
+    value = os.environ.get(SAMPLE_ENV, "0") or "0"
+    if not value.isdigit():
+        raise ValueError(f"{SAMPLE_ENV} must be a count of controllers (0: all), got {value!r}")
+    return int(value)
+
+
+def sample_indices(population: int, sample: int, call: int) -> np.ndarray:
+    """``sample`` evenly spaced indices of a population, shifted by one each call so that every
+    position is covered over successive evaluations."""
+    stride = max(1, population // sample)
+    return np.unique((call + np.arange(sample) * stride) % population)
+
+
+class HDLEvaluatorBoard:
+    """EvaluatorBoard over the same system; ``cycles`` counts the evaluator's own cycles.
+
+    ``sample`` > 0 (spot-check mode, for runs too long to simulate whole): the HDL evaluates only
+    ``sample`` controllers of each population (:func:`sample_indices`), the reference model the
+    whole population; the HDL's results must equal the reference's, and the reference's are
+    returned. ``cycles`` is then the cycle model's count for the whole population (exact for the
+    HDL: ``cosim.hardware_time.stream_cycles``) and ``simulated_cycles`` what was simulated.
+    """
+
+    def __init__(self, system, reflex: bool = True, check: bool = True, log: BoardLog | None = None,
+                 sample: int | None = None):
         self.system = system
         self.host = system.host
+        self.sample = sample_default() if sample is None else int(sample)
+        if self.sample and not check:
+            raise ValueError(f"sampling ({self.sample!r} controllers per evaluation) needs check=True")
         self.reference = ReferenceEvaluatorBoard(reflex=reflex) if check else None
         self.log = log if log is not None else BoardLog()
         self.reference_time_s = 0.0  # software time of the reference evaluations (check=True)
         self.evaluations = 0  # controllers evaluated
+        self.calls = 0
+        self.modeled_cycles = 0
 
     @property
     def cycles(self) -> int:
+        return self.modeled_cycles if self.sample else self.host.evaluator_cycles
+
+    @property
+    def simulated_cycles(self) -> int:
         return self.host.evaluator_cycles
 
     @property
@@ -251,34 +288,46 @@ class HDLEvaluatorBoard:
 
     def evaluate(self, population: np.ndarray) -> EvalCounts:
         from ga.genome import validate_rows
+        from cosim.hardware_time import stream_cycles
 
         population = validate_rows(population)
         if population.ndim != 2:
             raise ValueError(f"a population is (P, 50), got shape {population.shape!r}")
-        counts, cycles = self.system.call(self.host.evaluate, population)
+        index = np.arange(len(population))
+        if self.sample and self.sample < len(population):
+            index = sample_indices(len(population), self.sample, self.calls)
+        self.calls += 1
+        counts, cycles = self.system.call(self.host.evaluate, population[index])
         arr = np.asarray(counts, dtype=np.int64).reshape(-1, 3)
         result = EvalCounts(crashes=arr[:, 0], loops=arr[:, 1], distance=arr[:, 2], cycles=int(cycles))
         self.evaluations += len(population)
-        self.log.evaluation(result)
+        self.modeled_cycles += stream_cycles(len(population), self.host.model.n_states)
         if self.reference is not None:
             t0 = time.perf_counter()
             expected = self.reference.evaluate(population)
             self.reference_time_s += time.perf_counter() - t0
             for name in ("crashes", "loops", "distance"):
-                got, want = getattr(result, name), np.asarray(getattr(expected, name))
+                got, want = getattr(result, name), np.asarray(getattr(expected, name))[index]
                 if not np.array_equal(got, want):
                     i = int(np.flatnonzero(got != want)[0])
-                    raise BoardMismatch(f"evaluator board: {name} of controller {i} is {got[i]}, the "
-                                        f"reference gives {want[i]} (model of {self.host.model.n_states} states)")
+                    raise BoardMismatch(f"evaluator board: {name} of controller {int(index[i])} is {got[i]}, "
+                                        f"the reference gives {want[i]} (model of {self.host.model.n_states} states)")
+            if len(index) < len(population):
+                result = EvalCounts(crashes=np.asarray(expected.crashes), loops=np.asarray(expected.loops),
+                                    distance=np.asarray(expected.distance),
+                                    cycles=stream_cycles(len(population), self.host.model.n_states))
+        self.log.evaluation(result)
         return result
 
 
-def make_amaranth_boards(reflex: bool = True, check: bool = True, vcd: str | None = None):
-    """A fresh (controller board, evaluator board) pair sharing one simulated SystemTop."""
+def make_amaranth_boards(reflex: bool = True, check: bool = True, vcd: str | None = None,
+                         sample: int | None = None):
+    """A fresh (controller board, evaluator board) pair sharing one simulated SystemTop
+    (``sample``: see :class:`HDLEvaluatorBoard`; default ``EHW_HDL_SAMPLE`` or 0, all)."""
     system = AmaranthSystem(reflex=reflex, vcd=vcd)
     log = BoardLog()
     return (HDLControllerBoard(system, reflex, check, log=log),
-            HDLEvaluatorBoard(system, reflex, check, log=log))
+            HDLEvaluatorBoard(system, reflex, check, log=log, sample=sample))
 
 
 register_backend("amaranth", make_amaranth_boards)

@@ -34,7 +34,7 @@ import re
 import sys
 from pathlib import Path
 
-from cosim.amaranth_backend import BoardLog, HDLControllerBoard, HDLEvaluatorBoard
+from cosim.amaranth_backend import SAMPLE_ENV, BoardLog, HDLControllerBoard, HDLEvaluatorBoard
 from cosim.hardware_time import clock_hz_default, hardware_line
 from cosim.boards import register_backend
 
@@ -206,9 +206,11 @@ def write_system_verilog(out_dir: Path | str | None = None, p_max: int | None = 
 
 def run_online_cocotb(config, out: Path | str, *, resume: bool = False, plots: bool = False,
                       progress: bool = False, waves: bool | None = None, clock_hz: float | None = None,
-                      build_name: str = TOPLEVEL) -> dict:
+                      sample: int | None = None, build_name: str = TOPLEVEL) -> dict:
     """Run the on-line experiment ``config`` (a ``cosim.online.OnlineConfig``) inside a cocotb
-    test on the Verilog boards; returns the summary the test wrote to ``out/summary.json``."""
+    test on the Verilog boards; returns the summary the test wrote to ``out/summary.json``.
+    ``sample``: HDL-evaluate only that many controllers per population (spot-check mode; default
+    ``EHW_HDL_SAMPLE`` or all)."""
     from cosim.cocotb_run import REPO_ROOT, run_cocotb
 
     out = Path(out).resolve()
@@ -219,6 +221,8 @@ def run_online_cocotb(config, out: Path | str, *, resume: bool = False, plots: b
     options = {"out": str(out), "resume": resume, "plots": plots, "progress": progress}
     env = {CONFIG_ENV: json.dumps(config.to_dict()), OPTIONS_ENV: json.dumps(options),
            "EHW_CLOCK_HZ": str(clock_hz if clock_hz is not None else clock_hz_default())}
+    if sample is not None:  # spot-check mode (cosim.amaranth_backend.HDLEvaluatorBoard)
+        env[SAMPLE_ENV] = str(int(sample))
     run_cocotb(
         sources=[source], toplevel=TOPLEVEL, test_module="cosim.cocotb_backend", test_dir=REPO_ROOT,
         build_name=build_name, testcase="online_experiment", waves=waves,

@@ -54,7 +54,8 @@ def hardware_figures(run, clock_hz: float | None = None) -> dict:
     cfg = run.config
     modeled = modeled_evaluator_cycles(run.phases, cfg.population, cfg.generations_per_phase)
     evaluator, controller = run.evaluator, run.controller
-    measured = int(getattr(evaluator, "cycles", 0))
+    sample = int(getattr(evaluator, "sample", 0) or 0)
+    measured = 0 if sample else int(getattr(evaluator, "cycles", 0))
     out = {
         "clock_hz": hz,
         "evaluator_cycles": measured or modeled,
@@ -64,6 +65,9 @@ def hardware_figures(run, clock_hz: float | None = None) -> dict:
     }
     if measured:
         out["evaluator_cycles_model"] = modeled  # equal to the simulated count (the model is exact)
+    if sample:  # spot-check mode: the HDL evaluated `sample` controllers of each population
+        out["hdl_sample_per_evaluation"] = sample
+        out["evaluator_cycles_simulated"] = int(evaluator.simulated_cycles)
     ctl = int(getattr(controller, "cycles", 0))
     if ctl:
         out["controller_cycles"] = ctl
