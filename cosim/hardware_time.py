@@ -92,7 +92,7 @@ def hardware_line(summary: dict) -> str:
             f"({hw['evaluator_cycles']:,} cycles, {hw['evaluator_cycles_source']}, "
             f"{hw['controllers_evaluated']:,} controllers)")
     if ref is not None:
-        text += f"; reference evaluator in software: {ref:.3f} s"
+        text += f"; reference evaluator (NumPy) CPU time: {ref:.3f} s"
     if "controller_time_s" in hw:
         text += f"; controller EHW {hw['controller_cycles']:,} cycles"
     return text
