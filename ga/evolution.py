@@ -50,6 +50,7 @@ class GAConfig:
     # Per child: if its first parent reported a failure state (tell(..., failures=)), change the
     # child's motion there (ga.operators.avoid_state_motion). 0 = the plain GA.
     directed_rate: float = 0.0
+    directed_literals: int = 6  # literals of the term the directed mutation writes (8: s alone)
     literal_p: float = operators.DEFAULT_LITERAL_P  # connected-literal probability of new terms
     off_p: float = operators.DEFAULT_OFF_P  # fraction of off rows in the initial population
 
@@ -69,6 +70,8 @@ class GAConfig:
             value = getattr(self, name)
             if not 0.0 <= value <= 1.0:
                 raise ValueError(f"{name} must be in [0, 1], got {value!r}")
+        if not 1 <= self.directed_literals <= 8:
+            raise ValueError(f"directed_literals must be in 1..8, got {self.directed_literals!r}")
 
     def to_dict(self) -> dict:
         return dataclasses.asdict(self)
@@ -149,7 +152,9 @@ class GeneticAlgorithm:
                 state = failures[parents[i, 0]]
                 # The reflex fixes the motion of obstacle-free states: the array cannot change it.
                 if state is not None and REFLEX_TABLE[int(state)] < 0:
-                    children[i] = operators.avoid_state_motion(rng, children[i], int(state))
+                    children[i] = operators.avoid_state_motion(
+                        rng, children[i], int(state), cfg.directed_literals
+                    )
         return np.concatenate([elites, children]).astype(ROW_DTYPE)
 
     def replace(self, index: int, rows) -> None:
