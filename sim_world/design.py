@@ -60,12 +60,12 @@ def rectangle(cx: float, cy: float, width: float, height: float, rotation_deg: f
     return [[round(cx + u * c - v * s, 1), round(cy + u * s + v * c, 1)] for u, v in corners]
 
 
-# The default arena's 9 obstacles: a ring of 8 around the ball (4 near the corners, 4 near the
-# middles of the sides) plus one between the ball and the lower-left corner, every one a different
-# convex shape, no interior angle under 90 degrees (sharp corners hide between
-# the IR rays), obstacle gaps >= 500 mm
-# (two robot diameters) and wall gaps >= 600 mm, so
-# the 25 cm robot passes everywhere with room to turn.
+# The default arena's 9 obstacles: a ring of 8 around the ball plus one (the heptagon) between the
+# ball and the lower-left corner, every one a different convex shape with no interior angle under
+# 90 degrees (sharp corners hide between the IR rays). The centres came from a small max-min
+# search over bounding circles: every gap, obstacle to obstacle and obstacle to wall, is >= 595 mm
+# (2.4 robot diameters), each obstacle is >= 500 mm from the ball and clear of the start corner.
+# Narrower gaps (440-580 mm) made the noisy reactive baseline crash (docs/world.md).
 DEFAULT_OBSTACLES = [
     {"name": "hexagon", "polygon": regular_polygon(795, 795, 190, 6, 0)},
     {"name": "ellipse", "polygon": ellipse(2165, 860, 260, 150, 20)},
