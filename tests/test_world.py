@@ -285,3 +285,21 @@ def test_course_runner_records_and_counts():
     world.place((300.0, 2000.0, math.pi))
     crash = run_course(world, np.zeros(256, dtype=np.uint8), 500, start="here")
     assert crash.crashed and crash.targets_reached == 0
+
+
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        ({"translation_sd": -0.1}, "translation_sd must be >= 0"),
+        ({"rotation_sd_deg": float("nan")}, "rotation_sd_deg must be >= 0"),
+        ({"ir_false_negative": 1.5}, "ir_false_negative must be a probability"),
+        ({"ir_false_positive": -0.1}, "ir_false_positive must be a probability"),
+    ],
+)
+def test_noise_validation(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        Noise(**kwargs)
+
+
+def test_zero_noise_is_noise_free():
+    assert World(load_arena("empty"), noise=Noise()).noise is None
