@@ -182,7 +182,24 @@ class World:
         for f in self.faults:
             if not isinstance(f, Fault):
                 raise TypeError(f"faults must be Fault instances, got {f!r}")
-        self.space = build_space(arena)
+        self._build_physics()
+        self._bx, self._by = arena.ball
+        self._target_r = arena.target_radius_mm
+        self._ir_dirs = tuple(
+            (math.radians(a), 1 << bit) for a, bit in IR_SENSORS
+        )
+        motor_noise = self.noise is not None and (self.noise.translation_sd or self.noise.rotation_sd_deg)
+        self._cache: dict | None = {} if cache and not motor_noise else None
+        self.cache_hits = 0
+        self.interactions = 0
+        self.crashes = 0
+        self.reset(seed)
+        self.reset_to_start()
+
+    _PHYSICS = ("space", "_body", "bumper", "_sweep_body", "_sweep", "_ray_query", "_nearest_query")
+
+    def _build_physics(self) -> None:
+        self.space = build_space(self.arena)
         # The robot: a kinematic body and its bumper. Its pose is held in plain floats (the hot
         # path) and copied to the body by `robot_body` when someone wants to look at it.
         self._body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
@@ -191,19 +208,18 @@ class World:
         # (Keep a reference to its body: a pymunk shape does not keep its body alive.)
         self._sweep_body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
         self._sweep = pymunk.Segment(self._sweep_body, (0, 0), (1, 0), ROBOT_RADIUS_MM)
-        self._bx, self._by = arena.ball
-        self._target_r = arena.target_radius_mm
-        self._ir_dirs = tuple(
-            (math.radians(a), 1 << bit) for a, bit in IR_SENSORS
-        )
-        motor_noise = self.noise is not None and (self.noise.translation_sd or self.noise.rotation_sd_deg)
-        self._cache: dict | None = {} if cache and not motor_noise else None
         self._bind_queries()
-        self.cache_hits = 0
-        self.interactions = 0
-        self.crashes = 0
-        self.reset(seed)
-        self.reset_to_start()
+
+    def __getstate__(self) -> dict:
+        """Pickle support (process pools): the pymunk objects are rebuilt from the arena."""
+        state = self.__dict__.copy()
+        for key in self._PHYSICS:
+            state.pop(key, None)
+        return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._build_physics()
 
     def _bind_queries(self) -> None:
         """Bind the two hot queries to Chipmunk's C functions, as pymunk's own wrappers call them.

@@ -303,3 +303,15 @@ def test_noise_validation(kwargs, message):
 
 def test_zero_noise_is_noise_free():
     assert World(load_arena("empty"), noise=Noise()).noise is None
+
+
+def test_pickle_round_trip_continues_identically():
+    import pickle
+
+    world = World(load_arena(), noise=DEFAULT_NOISE, seed=4)
+    for m in [0, 0, 3, 0, 5]:
+        world.step(m)
+    copy_ = pickle.loads(pickle.dumps(world))
+    motions = [0, 2, 0, 0, 4, 1, 0, 0, 7, 0] * 20
+    assert [world.step(m) for m in motions] == [copy_.step(m) for m in motions]
+    assert world.pose == copy_.pose
