@@ -173,3 +173,16 @@ def test_command_line_writes_summary_and_plots(tmp_path, capsys):
     assert (tmp_path / "fig9_trajectory.png").stat().st_size > 1000
     assert (tmp_path / "fig10_targets_states.png").exists()
     assert "paper" in capsys.readouterr().out
+
+
+def test_continue_past_64_reports_the_64th_target_and_fig11(tmp_path, capsys):
+    rc = main(["--seed", "2", "--arena", "empty", "--population", "20", "--generations-per-phase", "2",
+               "--continue-past-64", "2", "--out", str(tmp_path), "--no-progress"])
+    assert rc == 0
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["targets_reached"] == 66
+    at64 = summary["at_64_targets"]
+    assert at64["target"] == 64 and at64["interactions"] < summary["interactions"]
+    assert (tmp_path / "fig11_continued.png").exists()
+    out = capsys.readouterr().out
+    assert f"{at64['interactions']:,}" in out and "continued to 66 targets" in out
