@@ -14,6 +14,11 @@ Each board also keeps the reference model (``cosim.boards`` reference backend) b
 checks every motion and every evaluation against it (``check=True``, the default): a divergence
 raises :class:`BoardMismatch` at once, with the call that diverged. The time the reference spent
 is kept (``reference_time_s``) to print the software time beside the hardware time.
+
+The board classes (:class:`HDLControllerBoard`, :class:`HDLEvaluatorBoard`) only need a system
+with ``host`` and ``call(job, *args)``: the cocotb backend reuses them over its own system. Also
+here: :class:`BoardLog` / :class:`LoggedBoards` (what crossed the board interface, to compare
+backends) and the evaluator's spot-check mode (``EHW_HDL_SAMPLE``, see docs/hdl_in_the_loop.md).
 """
 
 from __future__ import annotations
