@@ -56,6 +56,9 @@ def hardware_figures(run, clock_hz: float | None = None) -> dict:
     evaluator, controller = run.evaluator, run.controller
     sample = int(getattr(evaluator, "sample", 0) or 0)
     measured = 0 if sample else int(getattr(evaluator, "cycles", 0))
+    simulated = int(getattr(evaluator, "simulated_cycles", measured))
+    if measured != modeled:  # a resumed run: the replay re-observes but does not re-evaluate
+        measured = 0
     out = {
         "clock_hz": hz,
         "evaluator_cycles": measured or modeled,
@@ -67,7 +70,8 @@ def hardware_figures(run, clock_hz: float | None = None) -> dict:
         out["evaluator_cycles_model"] = modeled  # equal to the simulated count (the model is exact)
     if sample:  # spot-check mode: the HDL evaluated `sample` controllers of each population
         out["hdl_sample_per_evaluation"] = sample
-        out["evaluator_cycles_simulated"] = int(evaluator.simulated_cycles)
+    if simulated and not measured:
+        out["evaluator_cycles_simulated"] = simulated
     ctl = int(getattr(controller, "cycles", 0))
     if ctl:
         out["controller_cycles"] = ctl
