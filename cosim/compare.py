@@ -161,6 +161,12 @@ def markdown(report: dict) -> str:
             on = row["online"] if row["online"] is not None else "-"
             off = row["offline"] if row["offline"] is not None else "-"
             lines.append(f"| {row['seed']} | {on} | {off} |")
+    short = {m: sorted(int(s) for s, v in report["per_seed"].get(m, {}).items()
+                       if v.get("targets_reached", 64) < 64) for m in methods}
+    for m, seeds in short.items():
+        if seeds:
+            lines += ["", f"{names[m]}: seed(s) {', '.join(map(str, seeds))} stopped short of 64 targets "
+                      "(a generation or interaction cap); their interactions are lower bounds."]
     online = report["per_seed"].get("online", {})
     if online:
         lines += ["", "On-line learning phases by reason (per seed): " + "; ".join(
@@ -179,7 +185,14 @@ def main(argv=None) -> int:
     p.add_argument("--resume", action="store_true", help="continue interrupted runs from their checkpoints")
     p.add_argument("--blind-bit", type=int, default=None)
     p.add_argument("--blind-after-target", type=int, default=None)
+    p.add_argument("--render", type=Path, default=None, metavar="JSON",
+                   help="only rewrite compare.md from an existing compare.json")
     args = p.parse_args(argv)
+    if args.render is not None:
+        text = markdown(json.loads(args.render.read_text()))
+        (args.render.parent / "compare.md").write_text(text)
+        print(text)
+        return 0
     seeds = list(range(1, args.seeds + 1))
     methods = args.methods.split(",")
     out = args.out / "compare"
