@@ -328,8 +328,18 @@ class HDLEvaluatorBoard:
 def make_amaranth_boards(reflex: bool = True, check: bool = True, vcd: str | None = None,
                          sample: int | None = None):
     """A fresh (controller board, evaluator board) pair sharing one simulated SystemTop
-    (``sample``: see :class:`HDLEvaluatorBoard`; default ``EHW_HDL_SAMPLE`` or 0, all)."""
+    (``sample``: see :class:`HDLEvaluatorBoard`; default ``EHW_HDL_SAMPLE`` or 0, all).
+    ``vcd``: dump the simulation there (``WAVES=1``: build/sim/amaranth_system_top.vcd)."""
+    if vcd is None and os.environ.get("WAVES", "0") not in ("", "0"):
+        from cosim.cocotb_run import SIM_BUILD
+
+        SIM_BUILD.mkdir(parents=True, exist_ok=True)
+        vcd = str(SIM_BUILD / "amaranth_system_top.vcd")
     system = AmaranthSystem(reflex=reflex, vcd=vcd)
+    if vcd:
+        import atexit
+
+        atexit.register(system.close)  # the VCD is complete when the process ends
     log = BoardLog()
     return (HDLControllerBoard(system, reflex, check, log=log),
             HDLEvaluatorBoard(system, reflex, check, log=log, sample=sample))
