@@ -152,3 +152,55 @@ def test_cocotb_system_top_matches_reference(tmp_path):
     n_tests, _ = run_cocotb(sources=[src], toplevel="system_top", test_module="tb_system",
                             test_dir=TB_DIR, build_name="system_top_tb", extra_env={P_MAX_ENV: "16"})
     assert n_tests == 3
+
+
+def test_streamer_ignores_writes_and_go_while_busy():
+    """pop_we and go during a stream change nothing: results and cycles as without them."""
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from cosim.amaranth_backend import AmaranthSystem
+    from cosim.hardware_time import stream_cycles
+    from ga.evaluator import evaluate_population
+    from hdl.system_top import genome_words, unpack_result
+    from test_evaluator_cases import random_model, specific_rows
+
+    system = AmaranthSystem()
+    host, pins = system.host, system.pins
+    rng = np.random.default_rng(11)
+    model = random_model(rng, n_pool=20, n_obs=60, p_crash=0.2)
+    pop = specific_rows(rng, 3)
+    system.call(host.write_model, model)
+
+    async def meddling_stream():
+        for i, word in enumerate(genome_words(pop)):
+            pins.set("pop_addr", i)
+            pins.set("pop_data", word)
+            pins.set("pop_we", 1)
+            await pins.tick()
+        pins.set("pop_we", 0)
+        pins.set("pop_size", len(pop))
+        pins.set("go", 1)
+        await pins.tick()
+        for _ in range(60):  # mid-stream: overwrite every genome with an empty one, and go again
+            assert pins.get("pop_busy")
+            pins.set("pop_addr", int(rng.integers(len(pop))))
+            pins.set("pop_data", 0)
+            pins.set("pop_we", 1)
+            pins.set("pop_size", 1)
+            await pins.tick()
+        pins.set("pop_we", 0)
+        pins.set("go", 0)
+        await pins.wait("pop_done")
+        cycles = pins.get("pop_cycles")
+        results = []
+        for i in range(len(pop)):
+            pins.set("res_addr", i)
+            await pins.tick()
+            results.append(unpack_result(pins.get("res_data")))
+        return results, cycles
+
+    results, cycles = system.call(meddling_stream)
+    expected = evaluate_population(pop, model, True)
+    assert results == [expected.row(i) for i in range(len(pop))]
+    assert cycles == stream_cycles(len(pop), model.n_states)
