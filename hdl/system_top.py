@@ -49,7 +49,7 @@ from ga.genome import GENOME_BITS, N_ROWS, ROW_BITS
 from ga.motions import N_INPUTS, N_OUTPUTS
 from hdl.and_or_array import _check_positive
 from hdl.controller_ehw import ControllerEHW, row_addr_bits
-from hdl.evaluator_ehw import COUNT_BITS, CYCLE_BITS, DISTANCE_BITS, EvaluatorEHW
+from hdl.evaluator_ehw import COUNT_BITS, DISTANCE_BITS, EvaluatorEHW
 
 P_MAX = 512  # controllers per stream: the paper's population of 500 fits in one
 RESULT_BITS = 2 * COUNT_BITS + DISTANCE_BITS  # crashes | loops | distance = 34 bits
