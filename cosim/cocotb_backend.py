@@ -31,7 +31,6 @@ from __future__ import annotations
 import json
 import os
 import re
-import sys
 from pathlib import Path
 
 from cosim.amaranth_backend import SAMPLE_ENV, BoardLog, HDLControllerBoard, HDLEvaluatorBoard
@@ -139,7 +138,7 @@ except ImportError:  # pragma: no cover - cocotb is a dependency; keep the modul
 
 def _experiment(config: dict, options: dict) -> dict:
     """The blocking experiment (runs in cocotb's bridge thread)."""
-    from cosim.online import OnlineConfig, make_run, summary_table, write_results
+    from cosim.online import OnlineConfig, make_run, write_results
 
     cfg = OnlineConfig(**config)
     out = Path(options["out"])
@@ -148,7 +147,6 @@ def _experiment(config: dict, options: dict) -> dict:
     run.run()
     summary = write_results(run, out, plots=bool(options.get("plots")))
     run.controller.log.write(out / "board_log.json", run.motions)
-    print(summary_table(summary), file=sys.stderr)
     return summary
 
 
