@@ -185,6 +185,9 @@ def main(argv=None) -> int:
     p.add_argument("--resume", action="store_true", help="continue interrupted runs from their checkpoints")
     p.add_argument("--blind-bit", type=int, default=None)
     p.add_argument("--blind-after-target", type=int, default=None)
+    p.add_argument("--adaptation-only", action="store_true",
+                   help="with --blind-bit: run only the adaptation runs and add them to the existing "
+                        "<out>/compare.json (the off-line controllers are read from its model_free runs)")
     p.add_argument("--render", type=Path, default=None, metavar="JSON",
                    help="only rewrite compare.md from an existing compare.json")
     args = p.parse_args(argv)
@@ -197,7 +200,7 @@ def main(argv=None) -> int:
     methods = args.methods.split(",")
     out = args.out / "compare"
     base = {"arena": args.arena, "out": str(out), "resume": args.resume, "generations_cap": args.generations_cap}
-    tasks = [{**base, "method": m, "seed": s} for m in methods for s in seeds]
+    tasks = [] if args.adaptation_only else [{**base, "method": m, "seed": s} for m in methods for s in seeds]
     if args.blind_bit is not None:
         tasks += [{**base, "method": "online", "seed": s, "adapt": True, "out": str(out / "adaptation"),
                    "online": {"blind_bit": args.blind_bit, "blind_after_target": args.blind_after_target}}
@@ -214,6 +217,13 @@ def main(argv=None) -> int:
             (adapted if task.get("adapt") else results[method])[seed] = result
             print(f"{method:8s} seed {seed}: interactions {result.get('interactions'):,} "
                   f"targets {result.get('targets_reached')} ({result['task_wall_s']:.0f} s)", flush=True)
+    if args.adaptation_only:
+        saved = json.loads((args.out / "compare.json").read_text())
+        results = {m: {int(s): v for s, v in per.items()} for m, per in saved["per_seed"].items()}
+        for s in seeds:
+            path = out / "model_free" / f"seed_{s}" / "summary.json"
+            if s in results.get("offline", {}) and path.exists():
+                results["offline"][s]["best_genome"] = json.loads(path.read_text()).get("best_genome")
     report = build_report(results, args.arena, seeds)
     if args.blind_bit is not None:
         rows = []
