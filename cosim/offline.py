@@ -498,6 +498,7 @@ def main(argv=None) -> None:
         out=args.out, arena=args.arena, max_leg_steps=args.max_leg_steps, progress=not args.quiet,
         plots=not args.no_plots,
     )
+    _WORLDS.clear()  # free the pymunk spaces now, not during interpreter shutdown
     keys = ("seed", "reached_all_targets", "targets_reached", "generations", "genetic_operations",
             "interactions", "world_states", "transitions", "wall_time_s")
     for k in keys:
