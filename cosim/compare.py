@@ -188,6 +188,8 @@ def main(argv=None) -> int:
     p.add_argument("--adaptation-only", action="store_true",
                    help="with --blind-bit: run only the adaptation runs and add them to the existing "
                         "<out>/compare.json (the off-line controllers are read from its model_free runs)")
+    p.add_argument("--reuse", action="store_true",
+                   help="take the methods not run now (not in --methods) from the existing <out>/compare.json")
     p.add_argument("--render", type=Path, default=None, metavar="JSON",
                    help="only rewrite compare.md from an existing compare.json")
     args = p.parse_args(argv)
@@ -217,6 +219,11 @@ def main(argv=None) -> int:
             (adapted if task.get("adapt") else results[method])[seed] = result
             print(f"{method:8s} seed {seed}: interactions {result.get('interactions'):,} "
                   f"targets {result.get('targets_reached')} ({result['task_wall_s']:.0f} s)", flush=True)
+    if args.reuse and not args.adaptation_only and (args.out / "compare.json").exists():
+        saved = json.loads((args.out / "compare.json").read_text())
+        for m, per in saved["per_seed"].items():
+            if m not in results or not results[m]:
+                results[m] = {int(s): v for s, v in per.items() if int(s) in seeds}
     if args.adaptation_only:
         saved = json.loads((args.out / "compare.json").read_text())
         results = {m: {int(s): v for s, v in per.items()} for m, per in saved["per_seed"].items()}

@@ -92,6 +92,9 @@ class OnlineConfig:
     # > 0: stop when the robot has entered one obstacle state (from another state) this many times
     # since its last new closest approach to the ball (an oscillation, e.g. F/F -> F/L -> F/F)
     loop_reentries: int = 0
+    # > 0: stop when the last (state, motion) pairs are this many repetitions of one cycle of
+    # 2..6 pairs, without a new closest approach meanwhile (a periodic oscillation)
+    loop_repeats: int = 0
     # learning phase
     targeted: int = 0  # state-targeted mutants of the best written into the population per phase
     # after a time-out or loop, download the fittest individual whose motion in the blamed state
@@ -289,8 +292,23 @@ class OnlineRun:
                 return "loop", steps, *self._blame()
             if cfg.loop_reentries and self.entries and max(self.entries.values()) >= cfg.loop_reentries:
                 return "loop", steps, *self._blame()
+            if cfg.loop_repeats and self._periodic(cfg.loop_repeats):
+                return "loop", steps, *self._blame()
             if cfg.max_interactions and self.interactions >= cfg.max_interactions:
                 return "budget", steps, s, a
+
+    def _periodic(self, repeats: int) -> bool:
+        """The last ``repeats * p`` pairs repeat one p-cycle (2 <= p <= 6), all since the last new
+        closest approach to the ball."""
+        w = self.window
+        for p in range(2, 7):
+            n = repeats * p
+            if n > len(w) or n > self.since_closer:
+                break
+            tail = list(w)[-n:]
+            if all(tail[i] == tail[i % p] for i in range(n)) and len(set(tail[:p])) > 1:
+                return True
+        return False
 
     def _blame(self) -> tuple[int, int]:
         """The (state, motion) a time-out or loop is blamed on: the most frequent recent pair in a
@@ -640,7 +658,7 @@ def config_from_args(args) -> OnlineConfig:
         seed=args.seed, arena=args.arena, n_targets=args.targets + args.continue_past_64,
         population=args.population, generations_per_phase=args.generations_per_phase,
         max_leg_steps=args.max_leg_steps, loop_window=args.loop_window,
-        loop_reentries=args.loop_reentries, targeted=args.targeted, mark_limit=args.mark_limit,
+        loop_reentries=args.loop_reentries, loop_repeats=args.loop_repeats, targeted=args.targeted, mark_limit=args.mark_limit,
         max_interactions=args.max_interactions,
         escape=args.escape, mark_loops=args.mark_loops, model_update=args.model_update,
         blind_bit=args.blind_bit, blind_after_target=args.blind_after_target,
@@ -665,6 +683,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--max-leg-steps", type=int, default=d.max_leg_steps)
     p.add_argument("--loop-window", type=int, default=d.loop_window)
     p.add_argument("--loop-reentries", type=int, default=d.loop_reentries)
+    p.add_argument("--loop-repeats", type=int, default=d.loop_repeats)
     p.add_argument("--targeted", type=int, default=d.targeted)
     p.add_argument("--max-interactions", type=int, default=d.max_interactions,
                    help="end the lifetime after this many interactions even short of the targets (0: never)")
