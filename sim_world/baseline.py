@@ -5,15 +5,21 @@ around the obstacle until the way to the target is free". Expressed as a 256-ent
 over the world state, so it runs exactly like an evolved controller (``run_course``).
 
 How it was made: the rules of :func:`baseline_motion` were written by hand; alone they reach the
-target on most legs but fall into a few reactive loops and crash now and then under noise.
-:func:`tune_table` then changed single entries (a seeded local search over the legs of
-``TUNING_RUNS``, keeping a change that does not add failed legs or interactions), and changes
-that did not matter were reverted. The result, ``TUNED_TABLE``, is
-the shipped baseline; ``rules_table()`` is the hand-written starting point.
+target on most legs but fall into a few reactive loops and crash now and then under noise. Then,
+in two rounds, single entries were changed: a seeded local search (:func:`tune_table`, over every
+leg of ``TUNING_RUNS``, keeping a change that adds neither failed legs nor interactions) and
+changes by hand from the failed legs of noise seeds 0..99. What the second round found
+(docs/world.md): every failure under noise was a crash; backward motions (the first search had put
+some in) crash into what the three rear rays miss, so the search no longer proposes them; and
+with only x0 set, going round the obstacle while moving forward turned into it about as often
+as away (x0 merges the 0 and +-25 degree rays, so it does not say on which side the obstacle
+lies): there the robot now backs off while turning left. ``TUNED_TABLE`` is the shipped baseline;
+``rules_table()`` is the hand-written starting point.
 
 ``python -m sim_world.baseline`` runs it through the 64 legs noise-free and at DEFAULT_NOISE,
 prints targets, interactions, crashes and time-outs, and writes results/baseline.json and
-results/baseline_trajectory.png. ``--tune SECONDS`` re-runs the search from the rules.
+results/baseline_trajectory.png. ``--tune SECONDS`` continues the search from the shipped table;
+``--seeds 50 --first-seed 100`` checks it on noise seeds it was never tuned on.
 """
 
 from __future__ import annotations
@@ -93,15 +99,16 @@ def rules_table() -> np.ndarray:
     return np.array([baseline_motion(s) for s in range(N_STATES)], dtype=np.uint8)
 
 
-# The shipped baseline: the rules above with the entries of some states changed by a seeded local
-# search (`tune_table`) over every leg of TUNING_RUNS; changes that made no difference were then
-# reverted to the rule. One digit per
-# state 0..255, the motion code. The reflex states (obstacle bits 0) are never changed.
+# The shipped baseline: the rules above with the motion of 39 states changed (by the local search
+# `tune_table` over every leg of TUNING_RUNS, and by hand; see the module docstring). One digit per
+# state 0..255, the motion code (0 F, 1 B, 2 L, 3 R, 4 FL, 5 FR, 6 BL, 7 BR); state = obstacle bits
+# x0..x5 + 64 * sector, so each line of 64 digits is one target sector (front, left, back, right).
+# The reflex states (obstacle bits 0) are never changed.
 TUNED_TABLE = (
-    "0405424254534242445712420453424242534232005342420553424202534242"
-    "2253424242504242215342422253424227571242025342422253424222534242"
-    "2253424272334242225342423253424222534242525742422253424222534242"
-    "3453424234334242045346420553424232534242355342420233424242534242"
+    "0655424204534242005222420453425242534252005342420553424202554242"
+    "2253424242534242225342422253424222022242025342422253424322534532"
+    "2253424220334242225342423255424222534242555542322453424222532252"
+    "3653424234334242045343420553424202534240355342420233424242534242"
 )
 
 
@@ -116,67 +123,108 @@ def baseline_table() -> np.ndarray:
     return table
 
 
-def tune_table(table: np.ndarray, runs, seconds: float, rng: np.random.Generator,
-               max_leg_steps: int = DEFAULT_MAX_LEG_STEPS, log=print) -> np.ndarray:
-    """Local search: change the motion of one non-reflex state met at the end of a failed leg
-    (or of any state once none fails); keep the change when (failed legs, interactions) does not
-    get worse. ``runs`` is a list of (arena name, noise, seed); every leg starts afresh from its
-    own pose. Returns the improved table."""
-    arenas = {name: load_arena(name) for name, _, _ in runs}
+# The motions the search may put in a table: backward motions are left out. Behind the robot only
+# three rays look (135, 180, -135 degrees), and the crashes of earlier tables under noise were
+# mostly backward motions into an obstacle the rear rays missed.
+SEARCH_MOTIONS = (Motion.FORWARD, Motion.TURN_LEFT, Motion.TURN_RIGHT, Motion.FORWARD_LEFT, Motion.FORWARD_RIGHT)
+# A failed noise-free leg is a deterministic loop or crash, met again on every run: it weighs as
+# much as this many failed noisy legs.
+NOISE_FREE_WEIGHT = 10
 
-    def evaluate(tab):
-        fails, steps = [], 0
-        for name, noise, seed in runs:
-            world = World(arenas[name], noise=noise, seed=seed)
-            for leg in range(-1, N_POSITIONS - 1):
-                res = run_course(world, tab, max_leg_steps, n_targets=1, start="start" if leg < 0 else leg)
-                steps += res.steps
-                if res.targets_reached < 1:
-                    fails.append((name, noise, seed, leg))
-        return len(fails), steps, fails
 
-    def last_states(tab, name, noise, seed, leg):
-        world = World(arenas[name], noise=noise, seed=seed)
-        s = world.reset_to_start() if leg < 0 else world.relocate(leg)
-        seen = []
-        for _ in range(max_leg_steps):
-            out = world.step(int(tab[s]))
+def _run_leg(world: World, tab, leg: int, max_leg_steps: int):
+    """One leg from ``leg`` (-1: the start pose). Returns (reached, interactions, the last
+    obstacle states met)."""
+    s = world.reset_to_start() if leg < 0 else world.relocate(leg)
+    seen = []
+    for n in range(1, max_leg_steps + 1):
+        if s & OBSTACLE_MASK:
             seen.append(s)
-            s = out.state
-            if out.crashed or out.reached:
-                break
-        return [x for x in seen[-12:] if x & OBSTACLE_MASK]
+        out = world.step(int(tab[s]))
+        if out.crashed:
+            return False, n, seen[-12:]
+        if out.reached:
+            return True, n, seen[-12:]
+        s = out.state
+    return False, max_leg_steps, seen[-12:]
 
-    best = evaluate(table)
-    log(f"start: {best[0]} failed legs, {best[1]} interactions")
+
+def evaluate_legs(table, runs, max_leg_steps: int = DEFAULT_MAX_LEG_STEPS, limit=None):
+    """Every leg of every run in ``runs`` ((arena name, noise or None, seed) triples), each leg
+    started afresh from its own pose, one World per run (its noise stream runs on across legs).
+
+    Returns (cost, interactions, failures): cost counts failed legs, a noise-free one
+    NOISE_FREE_WEIGHT times; failures lists the last obstacle states of each failed leg. Stops
+    early once cost exceeds ``limit``.
+    """
+    arenas = {}
+    cost, steps, fails = 0, 0, []
+    for name, noise, seed in runs:
+        arena = arenas.get(name) or arenas.setdefault(name, load_arena(name))
+        world = World(arena, noise=noise, seed=seed)
+        weight = 1 if noise is not None else NOISE_FREE_WEIGHT
+        for leg in range(-1, N_POSITIONS - 1):
+            reached, n, seen = _run_leg(world, table, leg, max_leg_steps)
+            steps += n
+            if not reached:
+                cost += weight
+                fails.append(seen)
+                if limit is not None and cost > limit:
+                    return cost, steps, fails
+    return cost, steps, fails
+
+
+def tune_table(table: np.ndarray, runs, seconds: float, rng: np.random.Generator,
+               max_leg_steps: int = DEFAULT_MAX_LEG_STEPS, frozen=(), motions=SEARCH_MOTIONS,
+               log=print) -> np.ndarray:
+    """Local search: set one non-reflex state, mostly one met near the end of a failed leg, to one
+    of ``motions``; keep the change when (cost, interactions) of :func:`evaluate_legs` over
+    ``runs`` does not get worse. States in ``frozen`` keep their motion. Returns the new table."""
+    order = sorted(runs, key=lambda r: r[1] is not None)  # noise-free runs first: cheap rejects
+    best = evaluate_legs(table, order, max_leg_steps)
+    log(f"start: cost {best[0]}, {best[1]} interactions")
     t0 = time.perf_counter()
-    all_states = [s for s in range(N_STATES) if s & OBSTACLE_MASK]
+    all_states = [s for s in range(N_STATES) if s & OBSTACLE_MASK and s not in frozen]
     while time.perf_counter() - t0 < seconds:
-        candidates = all_states
-        if best[0]:
-            candidates = last_states(table, *best[2][rng.integers(best[0])]) or all_states
+        failed = [[s for s in f if s not in frozen] for f in best[2]]
+        failed = [f for f in failed if f]
+        candidates = failed[rng.integers(len(failed))] if failed and rng.random() < 0.8 else all_states
+        state = candidates[rng.integers(len(candidates))]
+        motion = motions[rng.integers(len(motions))]
+        if table[state] == motion:
+            continue
         cand = table.copy()
-        cand[candidates[rng.integers(len(candidates))]] = rng.integers(8)
-        res = evaluate(cand)
+        cand[state] = motion
+        res = evaluate_legs(cand, order, max_leg_steps, limit=best[0])
         if res[:2] <= best[:2]:
             table, best = cand, res
-            log(f"{time.perf_counter() - t0:6.0f} s: {best[0]} failed legs, {best[1]} interactions")
-    # Revert the changes that do not matter (neutral drift), to stay close to the rules.
-    rules = rules_table()
-    for s in np.flatnonzero(rules != table):
-        cand = table.copy()
-        cand[s] = rules[s]
-        res = evaluate(cand)
-        if res[0] <= best[0] and res[1] <= best[1] * 1.002:
-            table, best = cand, res
-    log(f"final: {best[0]} failed legs, {best[1]} interactions, {int((rules != table).sum())} entries off the rules")
+            log(f"{time.perf_counter() - t0:6.0f} s: cost {best[0]}, {best[1]} interactions")
+    log(f"final: cost {best[0]}, {best[1]} interactions")
     return table
 
 
+def revert_to_rules(table: np.ndarray, runs, max_leg_steps: int = DEFAULT_MAX_LEG_STEPS,
+                    slack: float = 0.002, log=print) -> np.ndarray:
+    """Put back the rule's motion wherever that neither adds cost nor more than ``slack`` of
+    interactions (the search's neutral drift), to stay close to the hand-written rules."""
+    rules = rules_table()
+    best = evaluate_legs(table, runs, max_leg_steps)
+    for s in np.flatnonzero(rules != table):
+        cand = table.copy()
+        cand[s] = rules[s]
+        res = evaluate_legs(cand, runs, max_leg_steps, limit=best[0])
+        if res[0] <= best[0] and res[1] <= best[1] * (1 + slack):
+            table, best = cand, res
+    log(f"reverted: cost {best[0]}, {best[1]} interactions, {int((rules != table).sum())} entries off the rules")
+    return table
+
+
+# What the shipped table was tuned on: every leg of these runs. Seeds 100.. are never used here:
+# they are the held-out check (`python -m sim_world.baseline --seeds 50 --first-seed 100`).
 TUNING_RUNS = (
-    [("default", None, 0)]
-    + [("default", DEFAULT_NOISE, s) for s in range(20)]
-    + [("one_obstacle", None, 0), ("one_obstacle", DEFAULT_NOISE, 0), ("empty", None, 0)]
+    [("default", None, 0), ("one_obstacle", None, 0), ("empty", None, 0)]
+    + [("default", DEFAULT_NOISE, s) for s in range(60)]
+    + [("one_obstacle", DEFAULT_NOISE, s) for s in range(3)]
 )
 
 
@@ -202,7 +250,9 @@ def _summary(res) -> dict:
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--arena", default="default")
-    parser.add_argument("--seeds", type=int, default=5, help="noisy runs (seeds 0..N-1)")
+    parser.add_argument("--seeds", type=int, default=5, help="noisy runs (seeds FIRST..FIRST+N-1)")
+    parser.add_argument("--first-seed", type=int, default=0, metavar="FIRST",
+                        help="first noisy seed (100 and up were never tuned on)")
     parser.add_argument("--max-leg-steps", type=int, default=DEFAULT_MAX_LEG_STEPS)
     parser.add_argument("--out", type=Path, default=Path("results"))
     parser.add_argument("--tune", type=float, default=0.0, metavar="SECONDS",
@@ -210,6 +260,7 @@ def main(argv=None) -> None:
     args = parser.parse_args(argv)
     if args.tune:
         table = tune_table(baseline_table(), TUNING_RUNS, args.tune, np.random.default_rng(0), args.max_leg_steps)
+        table = revert_to_rules(table, TUNING_RUNS, args.max_leg_steps)
         print("".join(str(int(m)) for m in table))
         return
     args.out.mkdir(parents=True, exist_ok=True)
@@ -219,11 +270,13 @@ def main(argv=None) -> None:
     report["noise_free"] = _summary(clean)
     print(f"noise-free: {_summary(clean)}")
     noisy = []
-    for seed in range(args.seeds):
+    for seed in range(args.first_seed, args.first_seed + args.seeds):
         res = run_baseline(args.arena, DEFAULT_NOISE, seed, args.max_leg_steps)
-        noisy.append(_summary(res))
+        noisy.append({"seed": seed, **_summary(res)})
         print(f"noisy seed {seed}: {noisy[-1]}")
     report["noisy"] = noisy
+    full = sum(r["targets"] == N_POSITIONS for r in noisy)
+    print(f"noisy: {full} of {len(noisy)} runs reach all {N_POSITIONS} targets")
     report["seconds"] = round(time.perf_counter() - t0, 2)
     (args.out / "baseline.json").write_text(json.dumps(report, indent=2) + "\n")
     from sim_world.render import plot_trajectory
