@@ -130,6 +130,8 @@ SEARCH_MOTIONS = (Motion.FORWARD, Motion.TURN_LEFT, Motion.TURN_RIGHT, Motion.FO
 # A failed noise-free leg is a deterministic loop or crash, met again on every run: it weighs as
 # much as this many failed noisy legs.
 NOISE_FREE_WEIGHT = 10
+# The front-only states (x0 alone, any sector): set by hand to BACKWARD_LEFT and kept out of the search.
+FRONT_ONLY_STATES = frozenset((1 << X_FRONT) | sector << SECTOR_SHIFT for sector in range(4))
 
 
 def _run_leg(world: World, tab, leg: int, max_leg_steps: int):
@@ -185,7 +187,7 @@ def tune_table(table: np.ndarray, runs, seconds: float, rng: np.random.Generator
     log(f"start: cost {best[0]}, {best[1]} interactions")
     t0 = time.perf_counter()
     all_states = [s for s in range(N_STATES) if s & OBSTACLE_MASK and s not in frozen]
-    while time.perf_counter() - t0 < seconds:
+    while all_states and time.perf_counter() - t0 < seconds:
         failed = [[s for s in f if s not in frozen] for f in best[2]]
         failed = [f for f in failed if f]
         candidates = failed[rng.integers(len(failed))] if failed and rng.random() < 0.8 else all_states
@@ -204,12 +206,14 @@ def tune_table(table: np.ndarray, runs, seconds: float, rng: np.random.Generator
 
 
 def revert_to_rules(table: np.ndarray, runs, max_leg_steps: int = DEFAULT_MAX_LEG_STEPS,
-                    slack: float = 0.002, log=print) -> np.ndarray:
+                    slack: float = 0.002, frozen=(), log=print) -> np.ndarray:
     """Put back the rule's motion wherever that neither adds cost nor more than ``slack`` of
     interactions (the search's neutral drift), to stay close to the hand-written rules."""
     rules = rules_table()
     best = evaluate_legs(table, runs, max_leg_steps)
     for s in np.flatnonzero(rules != table):
+        if s in frozen:
+            continue
         cand = table.copy()
         cand[s] = rules[s]
         res = evaluate_legs(cand, runs, max_leg_steps, limit=best[0])
@@ -259,8 +263,9 @@ def main(argv=None) -> None:
                         help="continue the local search from the shipped table and print the new table")
     args = parser.parse_args(argv)
     if args.tune:
-        table = tune_table(baseline_table(), TUNING_RUNS, args.tune, np.random.default_rng(0), args.max_leg_steps)
-        table = revert_to_rules(table, TUNING_RUNS, args.max_leg_steps)
+        table = tune_table(baseline_table(), TUNING_RUNS, args.tune, np.random.default_rng(0), args.max_leg_steps,
+                           frozen=FRONT_ONLY_STATES)
+        table = revert_to_rules(table, TUNING_RUNS, args.max_leg_steps, frozen=FRONT_ONLY_STATES)
         print("".join(str(int(m)) for m in table))
         return
     args.out.mkdir(parents=True, exist_ok=True)

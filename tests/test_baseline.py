@@ -6,9 +6,11 @@ import numpy as np
 
 from ga.motions import OBSTACLE_MASK, REFLEX_TABLE, X_FRONT, Motion
 from sim_world.baseline import (
+    FRONT_ONLY_STATES,
     TUNING_RUNS,
     baseline_table,
     evaluate_legs,
+    revert_to_rules,
     rules_table,
     run_baseline,
     tune_table,
@@ -27,8 +29,9 @@ def test_table_keeps_the_reflex():
 def test_front_only_obstacle_backs_off():
     # The lesson of the held-out failures: with only x0 set, a forward motion turned into the obstacle.
     table = baseline_table()
-    for sector in range(4):
-        assert table[(1 << X_FRONT) | sector << 6] not in (Motion.FORWARD, Motion.FORWARD_LEFT, Motion.FORWARD_RIGHT)
+    assert FRONT_ONLY_STATES == {(1 << X_FRONT) | sector << 6 for sector in range(4)}
+    for state in FRONT_ONLY_STATES:
+        assert table[state] not in (Motion.FORWARD, Motion.FORWARD_LEFT, Motion.FORWARD_RIGHT)
 
 
 def test_baseline_reaches_64_targets_noise_free():
@@ -77,3 +80,26 @@ def test_tune_table_never_makes_things_worse():
     assert evaluate_legs(tuned, runs)[:2] <= before
     reflex = REFLEX_TABLE >= 0
     assert np.array_equal(tuned[reflex], REFLEX_TABLE[reflex])
+
+
+def test_tune_table_keeps_frozen_states():
+    runs = [("empty", None, 0)]
+    straight = np.where(REFLEX_TABLE >= 0, REFLEX_TABLE, Motion.FORWARD).astype(np.uint8)
+    frozen = frozenset(range(256))
+    tuned = tune_table(straight, runs, 0.2, np.random.default_rng(1), frozen=frozen, log=lambda _: None)
+    assert np.array_equal(tuned, straight)
+
+
+def test_revert_to_rules_undoes_neutral_changes_only_where_not_frozen():
+    runs = [("empty", None, 0)]
+    rules = rules_table()
+    # States with every obstacle bit set never occur in the empty arena: changing them is neutral.
+    neutral = [OBSTACLE_MASK | sector << 6 for sector in range(4)]
+    table = rules.copy()
+    table[neutral] = (rules[neutral] + 1) % 8
+    front = sorted(FRONT_ONLY_STATES)[0]
+    table[front] = (rules[front] + 1) % 8
+    out = revert_to_rules(table, runs, frozen={front}, log=lambda _: None)
+    assert np.array_equal(out[neutral], rules[neutral])
+    assert out[front] == table[front]
+    assert evaluate_legs(out, runs)[0] <= evaluate_legs(table, runs)[0]
