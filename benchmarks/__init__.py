@@ -3,3 +3,15 @@
 ``python -m benchmarks`` runs them all (or those named on the command line) and merges the
 figures into ``results/bench.json``, keeping the keys of modules not run this time.
 """
+
+import time
+
+
+def best_time(fn, repeats: int) -> float:
+    """The shortest of ``repeats`` wall-clock timings of ``fn()`` (the least disturbed by a shared machine)."""
+    best = float("inf")
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t0)
+    return best

@@ -14,7 +14,6 @@
 
 from __future__ import annotations
 
-import time
 
 import numpy as np
 
@@ -23,20 +22,13 @@ from ga.genome import N_ROWS
 from ga.motions import REFLEX_STATES
 from ga.truth_table import truth_tables
 from ga.world_model import WorldModel
+from benchmarks import best_time
 
 SEED = 2026
 POPULATION = 500
 HDL_MODEL_SIZES = (10, 25, 50, 100, 150)
 HDL_CONTROLLERS = 4
 
-
-def _best_time(fn, repeats: int) -> float:
-    best = float("inf")
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
 
 
 def learned_model(rng: np.random.Generator, n_states: int, per_state: int = 4, p_crash: float = 0.1) -> WorldModel:
@@ -65,11 +57,11 @@ def reference_figures(rng) -> dict:
     model = learned_model(rng, 100)
     pop = specific_rows(rng, POPULATION)
     evaluate_population(pop, model)  # warm up
-    fast = _best_time(lambda: evaluate_population(pop, model), 30) / POPULATION
+    fast = best_time(lambda: evaluate_population(pop, model), 30) / POPULATION
     few = pop[:8]
-    slow = _best_time(lambda: [evaluate_python(g, model) for g in few], 2) / len(few)
+    slow = best_time(lambda: [evaluate_python(g, model) for g in few], 2) / len(few)
     tables = truth_tables(few)
-    pseudo = _best_time(lambda: [trace_counts(t, model) for t in tables], 5) / len(few)
+    pseudo = best_time(lambda: [trace_counts(t, model) for t in tables], 5) / len(few)
     result = evaluate_population(few, model)
     assert all(result.row(i) == evaluate_python(g, model) for i, g in enumerate(few))
     return {

@@ -2,21 +2,13 @@
 
 from __future__ import annotations
 
-import time
 
 import numpy as np
 
 from ga.genome import N_ROWS, ROW_BITS
 from ga.truth_table import truth_tables, truth_tables_python
+from benchmarks import best_time
 
-
-def _best_time(fn, repeats: int) -> float:
-    best = float("inf")
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
 
 
 def run() -> dict:
@@ -25,10 +17,10 @@ def run() -> dict:
     # probability 1/2. The cost does not depend on the bits (table look-ups, no early exit).
     pop = rng.integers(0, 1 << ROW_BITS, size=(500, N_ROWS), dtype=np.uint32)
     truth_tables(pop)  # warm the tables
-    fast = _best_time(lambda: truth_tables(pop), 50) / len(pop)
-    one = _best_time(lambda: truth_tables(pop[0]), 200)
+    fast = best_time(lambda: truth_tables(pop), 50) / len(pop)
+    one = best_time(lambda: truth_tables(pop[0]), 200)
     few = pop[:8]
-    slow = _best_time(lambda: truth_tables_python(few), 3) / len(few)
+    slow = best_time(lambda: truth_tables_python(few), 3) / len(few)
     for reflex in (False, True):
         assert np.array_equal(np.array(truth_tables_python(few, reflex), dtype=np.uint8), truth_tables(few, reflex))
     return {
