@@ -13,7 +13,7 @@ changes by hand from the failed legs of noise seeds 0..99. What the second round
 some in) crash into what the three rear rays miss, so the search no longer proposes them; and
 with only x0 set, going round the obstacle while moving forward turned into it about as often
 as away (x0 merges the 0 and +-25 degree rays, so it does not say on which side the obstacle
-lies): there the robot now backs off while turning left. ``TUNED_TABLE`` is the shipped baseline;
+lies): there the robot now backs off while turning left (target front or right). ``TUNED_TABLE`` is the shipped baseline;
 ``rules_table()`` is the hand-written starting point.
 
 ``python -m sim_world.baseline`` runs it through the 64 legs noise-free and at DEFAULT_NOISE,
@@ -124,13 +124,14 @@ def baseline_table() -> np.ndarray:
 
 
 # The motions the search may put in a table: backward motions are left out. Behind the robot only
-# three rays look (135, 180, -135 degrees), and the crashes of earlier tables under noise were
-# mostly backward motions into an obstacle the rear rays missed.
+# three rays look (135, 180, -135 degrees), and 9 of the 26 failed legs of the round-1 table (noise
+# seeds 0..99) were backward motions into an obstacle the rear rays missed.
 SEARCH_MOTIONS = (Motion.FORWARD, Motion.TURN_LEFT, Motion.TURN_RIGHT, Motion.FORWARD_LEFT, Motion.FORWARD_RIGHT)
 # A failed noise-free leg is a deterministic loop or crash, met again on every run: it weighs as
 # much as this many failed noisy legs.
 NOISE_FREE_WEIGHT = 10
-# The front-only states (x0 alone, any sector): set by hand to BACKWARD_LEFT and kept out of the search.
+# The front-only states (x0 alone, any sector): set by hand (BACKWARD_LEFT with the target front or
+# right, TURN_LEFT, the rule, with it left or behind) and kept out of the search.
 FRONT_ONLY_STATES = frozenset((1 << X_FRONT) | sector << SECTOR_SHIFT for sector in range(4))
 
 
