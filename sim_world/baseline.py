@@ -99,16 +99,16 @@ def rules_table() -> np.ndarray:
     return np.array([baseline_motion(s) for s in range(N_STATES)], dtype=np.uint8)
 
 
-# The shipped baseline: the rules above with the motion of 37 states changed (by the local search
+# The shipped baseline: the rules above with the motion of 16 states changed (by the local search
 # `tune_table` over every leg of TUNING_RUNS, and by hand; see the module docstring). One digit per
 # state 0..255, the motion code (0 F, 1 B, 2 L, 3 R, 4 FL, 5 FR, 6 BL, 7 BR); state = obstacle bits
 # x0..x5 + 64 * sector, so each line of 64 digits is one target sector (front, left, back, right).
 # The reflex states (obstacle bits 0) are never changed.
 TUNED_TABLE = (
-    "0653424204534242005322420453425242534252005342420553424202554242"
-    "2253424242534242225342422253424222022242025342422253424322534532"
-    "2253424220334242225342423255424222534242555542322453424222532252"
-    "3653424234334242045343420553424202534240355342420233424242534242"
+    "0653424204534242005342420453424202534242005342420553424202534242"
+    "2253424242534242225342422253424222034242025342422253424222534242"
+    "2253424220534242225342422255424222534242525342422253424222534242"
+    "3653424234334242045342420553424202534242355342420253424242534242"
 )
 
 
