@@ -13,7 +13,8 @@ changes by hand from the failed legs of noise seeds 0..99. What the second round
 some in) crash into what the three rear rays miss, so the search no longer proposes them; and
 with only x0 set, going round the obstacle while moving forward turned into it about as often
 as away (x0 merges the 0 and +-25 degree rays, so it does not say on which side the obstacle
-lies): there the robot now backs off while turning left (target front or right). ``TUNED_TABLE`` is the shipped baseline;
+lies): there the robot now backs off while turning left (target front or right). Last,
+:func:`revert_to_rules` put back every rule that cost nothing. ``TUNED_TABLE`` is the shipped baseline;
 ``rules_table()`` is the hand-written starting point.
 
 ``python -m sim_world.baseline`` runs it through the 64 legs noise-free and at DEFAULT_NOISE,

@@ -37,7 +37,7 @@ def test_front_only_obstacle_backs_off():
 def test_baseline_reaches_64_targets_noise_free():
     res = run_baseline("default")
     assert res.targets_reached == 64 and not res.crashed and not res.timed_out
-    # The longest leg (280 interactions, a few back-offs in front of the disc) leaves the limit a margin.
+    # The longest leg (280 interactions: one leg with many front-only back-offs) leaves the limit a margin.
     assert max(res.leg_steps) < 0.6 * DEFAULT_MAX_LEG_STEPS
 
 
