@@ -9,9 +9,9 @@ How the physics engine is used (a measured choice, see docs/world.md):
 * The robot is a kinematic pymunk body with a circle shape (the bumper). A motion moves it
   kinematically: half the turn, the translation along the new heading, the other half of the turn
   (the midpoint rule for a differential-drive arc). A disc turning in place sweeps nothing, so the
-  bumper test is the translation's swept disc, an
-  exact continuous collision test (no substeps, no tunnelling, no solver jitter); the swept disc
-  is a pymunk capsule (segment shape of radius R) checked with ``space.shape_query``. Stepping a
+  bumper test is the translation's swept disc, checked with ``point_query_nearest`` at centre
+  samples 5 mm apart (at most 0.025 mm from the exact swept capsule; no tunnelling, no solver
+  jitter). Stepping a
   dynamic body through the solver would cost ~10x more per motion and gives a pose that depends on
   contact resolution; the paper's robot simply stops and is put back.
 * The 10 IR sensors are ``segment_query_first`` rays from the rim out to 30 cm; one
@@ -79,6 +79,7 @@ _ROTATION = tuple(math.radians(float(r)) for r in MOTION_ROTATION_DEG)
 
 _TWO_PI = 2.0 * math.pi
 _QUERY_FILTER = pymunk.ShapeFilter()
+BUMPER_SAMPLE_MM = 5.0  # bumper test: centre samples along a translation (see World.bumper_hits)
 # Poses whose noise-free IR readings are remembered (~350 bytes each); the cache is cleared
 # when full. With motor noise no pose repeats, so such worlds do not cache at all.
 _CACHE_LIMIT = 250_000
@@ -196,7 +197,7 @@ class World:
         self.reset(seed)
         self.reset_to_start()
 
-    _PHYSICS = ("space", "_body", "bumper", "_sweep_body", "_sweep", "_ray_query", "_nearest_query")
+    _PHYSICS = ("space", "_body", "bumper", "_ray_query", "_nearest_query")
 
     def _build_physics(self) -> None:
         self.space = build_space(self.arena)
@@ -204,10 +205,6 @@ class World:
         # path) and copied to the body by `robot_body` when someone wants to look at it.
         self._body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
         self.bumper = pymunk.Circle(self._body, ROBOT_RADIUS_MM)
-        # The bumper swept along one translation: a capsule on a body fixed at the origin.
-        # (Keep a reference to its body: a pymunk shape does not keep its body alive.)
-        self._sweep_body = pymunk.Body(body_type=pymunk.Body.KINEMATIC)
-        self._sweep = pymunk.Segment(self._sweep_body, (0, 0), (1, 0), ROBOT_RADIUS_MM)
         self._bind_queries()
 
     def __getstate__(self) -> dict:
@@ -395,17 +392,23 @@ class World:
     def bumper_hits(self, x0: float, y0: float, x1: float, y1: float) -> bool:
         """True when the robot's disc, swept from (x0, y0) to (x1, y1), cuts into an obstacle or wall.
 
-        The swept disc is a pymunk capsule (a segment shape of radius R) tested with
-        ``shape_query``. (``segment_query_first`` with a radius is not usable for this: Chipmunk's
-        spatial index only visits shapes whose bounding box the bare centre line crosses, so a
-        disc moving into a wall it has not reached with its centre goes through.) Touching without
-        penetrating (distance 0) is not a crash, so a robot resting against a wall can leave it.
+        The disc's centre is sampled every ``BUMPER_SAMPLE_MM`` along the path and pymunk's
+        ``point_query_nearest`` gives the distance from it to the nearest obstacle surface: a
+        crash when that is less than the robot's radius. Between two samples the union of the
+        discs misses at most R - sqrt(R^2 - (s/2)^2) = 0.025 mm of the swept capsule. (Two exact
+        alternatives fail: ``segment_query_first`` with a radius only visits shapes whose bounding
+        box the bare centre line crosses, and ``shape_query`` with a capsule reports a positive
+        contact distance for a capsule overlapping a circle, so a disc obstacle was not solid.)
+        Touching without penetrating (distance R) is not a crash, so a robot resting against a
+        wall can leave it.
         """
-        self._sweep.unsafe_set_endpoints((x0, y0), (x1, y1))
-        for info in self.space.shape_query(self._sweep):
-            for point in info.contact_point_set.points:
-                if point.distance < -1e-9:
-                    return True
+        n = max(1, math.ceil(math.hypot(x1 - x0, y1 - y0) / BUMPER_SAMPLE_MM))
+        dx, dy = (x1 - x0) / n, (y1 - y0) / n
+        limit = ROBOT_RADIUS_MM - 1e-6
+        for i in range(1, n + 1):
+            d = self._nearest_query((x0 + i * dx, y0 + i * dy), ROBOT_RADIUS_MM)
+            if d is not None and d < limit:
+                return True
         return False
 
     def step(self, motion: int) -> Step:

@@ -315,3 +315,33 @@ def test_pickle_round_trip_continues_identically():
     motions = [0, 2, 0, 0, 4, 1, 0, 0, 7, 0] * 20
     assert [world.step(m) for m in motions] == [copy_.step(m) for m in motions]
     assert world.pose == copy_.pose
+
+
+def test_no_motion_ends_inside_any_obstacle_or_wall():
+    """The bumper against the arena's own geometry (not pymunk's): a random walk that hugs every
+    obstacle, the disc included, never ends a motion with the robot overlapping anything."""
+    arena = load_arena("default")
+    world = World(arena, seed=7)
+    rng = np.random.default_rng(7)
+    crashes = 0
+    for leg in range(40):
+        world.relocate(leg % len(arena.positions))
+        for _ in range(150):
+            # Mostly forward, so the robot keeps running into things.
+            step = world.step(int(rng.choice(8, p=[0.55, 0.05, 0.1, 0.1, 0.1, 0.1, 0.0, 0.0])))
+            crashes += step.crashed
+            assert arena.clearance(world.pose[:2]) >= ROBOT_RADIUS_MM - 0.05, world.pose
+    assert crashes > 50  # the walk did reach the obstacles
+
+
+def test_the_disc_obstacle_is_solid():
+    """Regression: pymunk's capsule shape_query reported a positive distance for a capsule
+    overlapping a circle, so the default arena's disc could be driven through."""
+    arena = load_arena("default")
+    disc = next(ob for ob in arena.obstacles if ob.is_circle)
+    (cx, cy), r = disc.centre, disc.radius
+    world = World(arena)
+    world.place((cx - r - ROBOT_RADIUS_MM - 200.0, cy, 0.0))
+    crashed = [world.step(0).crashed for _ in range(12)]
+    assert crashed[:3] == [False] * 3 and crashed[-1]
+    assert cx - world.pose[0] >= r + ROBOT_RADIUS_MM - 1e-6
