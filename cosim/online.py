@@ -95,11 +95,29 @@ class OnlineConfig:
     # > 0: stop when the last (state, motion) pairs are this many repetitions of one cycle of
     # 2..6 pairs, without a new closest approach meanwhile (a periodic oscillation)
     loop_repeats: int = 0
+    # the recent (state, motion) window that a time-out/loop is blamed on starts empty at each
+    # execution phase (False: it also holds the previous phases' pairs, motions the controller
+    # just downloaded may no longer choose)
+    blame_phase_only: bool = False
+    # what loop_repeats compares: "pair" = (state, motion); "motion" = the motion only (a cycle
+    # whose states differ by a noisy IR bit is still caught)
+    loop_key: str = "pair"
+    # > 0: loop_repeats fires only if, besides, the ball distance one cycle apart differs by at
+    # most this many mm (the cycle goes nowhere); 0: off
+    loop_still_mm: float = 0.0
+    # > 0: after this many loop stops on one leg (same target), loop_repeats and loop_reentries
+    # are off until the next target (only loop_window and the time-out stop the leg): a detour
+    # that must move away from the ball is not cut again and again; 0: off
+    loop_patience: int = 0
     # learning phase
     targeted: int = 0  # state-targeted mutants of the best written into the population per phase
     # after a time-out or loop, download the fittest individual whose motion in the blamed state
     # differs from the failed one (the model cannot see a real-world loop; see docs/online.md)
     escape: bool = True
+    # with escape: avoid, in the blamed state, every motion blamed for an earlier time-out/loop
+    # there (fewest blames first; motions the model knows to crash count as blamed), not only the
+    # last one: stops the download flipping between two looping motions (docs/online.md)
+    escape_memory: bool = False
     # NOT the normative model update (SPEC section 7), an option: after a time-out or loop, the
     # blamed (state, motion) is written to the world model so that the fitness sees the real-world
     # loop: "self" = as a transition back to the same state (the fitness counts it as a loop; the
@@ -124,6 +142,8 @@ class OnlineConfig:
             raise ValueError(f"max_leg_steps must be at least 1, got {self.max_leg_steps!r}")
         if self.generations_per_phase < 1:
             raise ValueError(f"generations_per_phase must be at least 1, got {self.generations_per_phase!r}")
+        if self.loop_key not in ("pair", "motion"):
+            raise ValueError(f"loop_key must be 'pair' or 'motion', got {self.loop_key!r}")
         if (self.blind_bit is None) != (self.blind_after_target is None):
             raise ValueError("blind_bit and blind_after_target go together, got "
                              f"{self.blind_bit!r} and {self.blind_after_target!r}")
@@ -182,6 +202,7 @@ class OnlineRun:
         self.curve_transitions: list[int] = []
         self.known_crash_repeats = 0  # motions chosen in a state where the model knows they crash
         self.window = deque(maxlen=max(config.loop_window, 64))  # recent (state, motion)
+        self.dists = deque(maxlen=self.window.maxlen)  # the ball distance after each of them
         self.closest = float("inf")
         self.since_closer = 0
         self.entries: Counter = Counter()  # obstacle state -> entries since the last closest approach
@@ -220,6 +241,7 @@ class OnlineRun:
         self.interactions += 1
         self.leg_steps += 1
         self.window.append((s, motion))
+        self.dists.append(step.distance_mm)
         self.curve_states.append(self.mirror.n_states)
         self.curve_transitions.append(self.mirror.n_transitions)
         x, y, _ = self.world.pose
@@ -243,6 +265,7 @@ class OnlineRun:
             self.closest, self.since_closer = float("inf"), 0
             self.entries.clear()
             self.window.clear()
+            self.dists.clear()
             self.trajectory.append((*self.world.pose[:2], "relocate"))
         else:
             self.trajectory.append((x, y, ""))
@@ -272,6 +295,11 @@ class OnlineRun:
         self.leg_steps = 0
         self.closest, self.since_closer = float("inf"), 0
         self.entries.clear()
+        if cfg.blame_phase_only:
+            self.window.clear()
+            self.dists.clear()
+        quick = not cfg.loop_patience or cfg.loop_patience > sum(
+            1 for p in self.phases if p["targets"] == self.targets and p["reason"] == "loop")
         while True:
             s = self.state
             a = self.controller.motion(s)
@@ -290,9 +318,9 @@ class OnlineRun:
                 return "timeout", steps, *self._blame()
             if cfg.loop_window and self.since_closer >= cfg.loop_window:
                 return "loop", steps, *self._blame()
-            if cfg.loop_reentries and self.entries and max(self.entries.values()) >= cfg.loop_reentries:
+            if quick and cfg.loop_reentries and self.entries and max(self.entries.values()) >= cfg.loop_reentries:
                 return "loop", steps, *self._blame()
-            if cfg.loop_repeats and self._periodic(cfg.loop_repeats):
+            if quick and cfg.loop_repeats and self._periodic(cfg.loop_repeats):
                 return "loop", steps, *self._blame()
             if cfg.max_interactions and self.interactions >= cfg.max_interactions:
                 return "budget", steps, s, a
@@ -306,8 +334,16 @@ class OnlineRun:
             if n > len(w) or n > self.since_closer:
                 break
             tail = list(w)[-n:]
+            if self.config.loop_key == "motion":
+                tail = [a for _, a in tail]
             if all(tail[i] == tail[i % p] for i in range(n)) and len(set(tail[:p])) > 1:
-                return True
+                if not self.config.loop_still_mm:
+                    return True
+                # a loop goes nowhere: one cycle later the ball is as far as it was (a wall
+                # followed away from the ball also repeats a cycle, but the distance drifts)
+                d = list(self.dists)[-n:]
+                if max(abs(d[i] - d[i - p]) for i in range(p, n)) <= self.config.loop_still_mm:
+                    return True
         return False
 
     def _blame(self) -> tuple[int, int]:
@@ -349,7 +385,12 @@ class OnlineRun:
         last = self.ga.last_fitness
         i_best = int(np.argmax(last))
         if cfg.escape and reason in ("timeout", "loop") and state & OBSTACLE_MASK:
-            differs = _motions_in(pop, state, cfg.reflex) != motion
+            motions = _motions_in(pop, state, cfg.reflex)
+            if cfg.escape_memory:
+                penalty = self._blames(state, motion)[motions]
+                differs = penalty == penalty.min()
+            else:
+                differs = motions != motion
             if differs.any() and not differs[i_best]:
                 i_best = int(np.flatnonzero(differs)[np.argmax(last[differs])])
                 record["escaped"] = True
@@ -367,6 +408,17 @@ class OnlineRun:
         })
         record.update(diversity(pop, self.mirror.states))
         self.phases.append(record)
+
+    def _blames(self, state: int, motion: int) -> np.ndarray:
+        """Per motion, how often it was blamed for a time-out or loop in ``state`` (the phase
+        records and this one), plus 1,000 where the model knows it crashes there."""
+        blames = np.zeros(8, dtype=np.int64)
+        for p in self.phases:
+            if p["reason"] in ("timeout", "loop") and p["state"] == state:
+                blames[p["motion"]] += 1
+        blames[motion] += 1
+        blames += 1000 * self.mirror.crash[state].astype(np.int64)
+        return blames
 
     # -- the lifetime --------------------------------------------------------------------------
 
@@ -660,7 +712,10 @@ def config_from_args(args) -> OnlineConfig:
         max_leg_steps=args.max_leg_steps, loop_window=args.loop_window,
         loop_reentries=args.loop_reentries, loop_repeats=args.loop_repeats, targeted=args.targeted, mark_limit=args.mark_limit,
         max_interactions=args.max_interactions,
-        escape=args.escape, mark_loops=args.mark_loops, model_update=args.model_update,
+        escape=args.escape, escape_memory=args.escape_memory,
+        blame_phase_only=args.blame_phase_only, loop_key=args.loop_key,
+        loop_still_mm=args.loop_still_mm, loop_patience=args.loop_patience,
+        mark_loops=args.mark_loops, model_update=args.model_update,
         blind_bit=args.blind_bit, blind_after_target=args.blind_after_target,
     )
 
@@ -688,6 +743,19 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--max-interactions", type=int, default=d.max_interactions,
                    help="end the lifetime after this many interactions even short of the targets (0: never)")
     p.add_argument("--escape", action=argparse.BooleanOptionalAction, default=d.escape)
+    p.add_argument("--blame-phase-only", action=argparse.BooleanOptionalAction,
+                   default=d.blame_phase_only,
+                   help="blame a loop only on the pairs of the failing execution phase")
+    p.add_argument("--loop-key", choices=("pair", "motion"), default=d.loop_key,
+                   help="what --loop-repeats compares: (state, motion) pairs or motions only")
+    p.add_argument("--loop-still-mm", type=float, default=d.loop_still_mm,
+                   help="--loop-repeats fires only if the ball distance one cycle apart changes "
+                        "by at most this (mm; 0: off)")
+    p.add_argument("--loop-patience", type=int, default=d.loop_patience,
+                   help="after this many loop stops at one target, only --loop-window stops a leg "
+                        "until the next target (0: off)")
+    p.add_argument("--escape-memory", action=argparse.BooleanOptionalAction, default=d.escape_memory,
+                   help="escape avoids every motion blamed for a loop in the blamed state so far")
     p.add_argument("--mark-loops", choices=("off", "self", "crash"), default=d.mark_loops,
                    help="write a time-out/loop into the world model at the blamed (state, motion): "
                         "as a self-transition or a crash (not SPEC; off = SPEC)")
