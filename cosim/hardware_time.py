@@ -63,7 +63,7 @@ def hardware_figures(run, clock_hz: float | None = None) -> dict:
         "clock_hz": hz,
         "evaluator_cycles": measured or modeled,
         "evaluator_cycles_source": "simulated" if measured else "model",
-        "evaluator_time_s": round((measured or modeled) / hz, 6),
+        "evaluator_time_s": (measured or modeled) / hz,
         "controllers_evaluated": run.genetic_operations,
     }
     if measured:
@@ -75,7 +75,7 @@ def hardware_figures(run, clock_hz: float | None = None) -> dict:
     ctl = int(getattr(controller, "cycles", 0))
     if ctl:
         out["controller_cycles"] = ctl
-        out["controller_time_s"] = round(ctl / hz, 6)
+        out["controller_time_s"] = ctl / hz
         out["host_link_cycles"] = int(getattr(evaluator, "transfer_cycles", 0))
     software = getattr(evaluator, "reference_time_s", None)
     if software is None:
