@@ -624,22 +624,15 @@ def write_plots(run: OnlineRun, out: Path) -> list[Path]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from sim_world.render import plot_trajectory
+
     out.mkdir(parents=True, exist_ok=True)
     paths = []
     title = (f"On-line model-based lifetime (seed {run.config.seed}): {run.targets} targets, "
              f"{run.interactions:,} interactions")
     path = out / "fig9_trajectory.png"
-    try:
-        from sim_world.render import plot_trajectory
-
-        plot_trajectory(run.world.arena, [(x, y, 0.0, event) for x, y, event in run.trajectory], path,
-                        title=title)
-    except (ImportError, TypeError):
-        fig, ax = plt.subplots(figsize=(7, 7))
-        _plot_trajectory_fallback(ax, run)
-        ax.set_title(title)
-        fig.savefig(path, dpi=110, bbox_inches="tight")
-        plt.close(fig)
+    plot_trajectory(run.world.arena, [(x, y, 0.0, event) for x, y, event in run.trajectory], path,
+                    title=title)
     paths.append(path)
 
     def fig10(limit: int | None, name: str, title: str):
@@ -673,24 +666,6 @@ def write_plots(run: OnlineRun, out: Path) -> list[Path]:
     if run.config.n_targets > 64:
         fig10(None, "fig11_continued.png", f"Continued past 64 targets ({run.targets} targets)")
     return paths
-
-
-def _plot_trajectory_fallback(ax, run: OnlineRun) -> None:
-    from matplotlib.patches import Circle, Polygon
-
-    arena = run.world.arena
-    for ob in arena.obstacles:
-        if ob.is_circle:
-            ax.add_patch(Circle(ob.centre, ob.radius, color="0.5"))
-        else:
-            ax.add_patch(Polygon(list(ob.vertices), color="0.5"))
-    xs = [p[0] for p in run.trajectory]
-    ys = [p[1] for p in run.trajectory]
-    ax.plot(xs, ys, lw=0.3, color="tab:blue")
-    ax.add_patch(Circle(arena.ball, arena.target_radius_mm, fill=False, color="tab:red"))
-    ax.set_xlim(0, arena.size_mm)
-    ax.set_ylim(0, arena.size_mm)
-    ax.set_aspect("equal")
 
 
 def write_results(run: OnlineRun, out: Path, plots: bool = True) -> dict:
