@@ -61,21 +61,6 @@ REFLEX_MOTION = np.array(
 )  # indexed by Sector: front, left, back, right
 
 
-def sector_of(state: int) -> Sector:
-    """The target sector encoded in world state ``state``."""
-    return Sector((state >> SECTOR_SHIFT) & 3)
-
-
-def obstacle_bits(state: int) -> int:
-    """The six obstacle bits x0..x5 of ``state``."""
-    return state & OBSTACLE_MASK
-
-
-def reflex_applies(state: int) -> bool:
-    """True when no obstacle is perceived, so the reflex fixes the motion."""
-    return obstacle_bits(state) == 0
-
-
 def make_state(obstacles: int, sector: int) -> int:
     """Pack six obstacle bits and a sector code into an 8-bit world state."""
     if not 0 <= obstacles <= OBSTACLE_MASK:

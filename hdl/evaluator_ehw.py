@@ -84,16 +84,6 @@ CYCLE_BITS = 16
 assert N_STATES * MAX_MOTION_DISTANCE_MM < 1 << DISTANCE_BITS
 
 
-def ram_address(state: int, motion: int) -> int:
-    """The RAM address of the entry (state, motion): ``state * 8 + motion``."""
-    return state * N_MOTIONS + motion
-
-
-def entry_word(next_state: int, crash: bool, valid: bool = True) -> int:
-    """A RAM entry as an integer in ENTRY_LAYOUT (next in bits 0-7, crash bit 8, valid bit 9)."""
-    return next_state | int(crash) << N_INPUTS | int(valid) << (N_INPUTS + 1)
-
-
 def _lowest_set(bits, lo: int, hi: int):
     """(any, index - lo) of the lowest set bit of ``bits[lo:hi]`` (hi - lo a power of 2): a
     balanced tree of 2:1 muxes, log2(hi - lo) levels deep."""

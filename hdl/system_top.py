@@ -381,6 +381,20 @@ class SystemHost:
         pins.set("ev_state_we", 0)
         self.model = model.copy()
 
+    async def start_stream(self, words) -> None:
+        """Write genome words (at most ``p_max``) into the population RAM, then hold ``go`` for one
+        edge: the stream has started when this returns (``go`` is still set: clear it)."""
+        pins = self.pins
+        for i, word in enumerate(words):
+            pins.set("pop_addr", i)
+            pins.set("pop_data", word)
+            pins.set("pop_we", 1)
+            await pins.tick()
+        pins.set("pop_we", 0)
+        pins.set("pop_size", len(words))
+        pins.set("go", 1)
+        await pins.tick()
+
     async def evaluate(self, population) -> tuple[list[tuple[int, int, int]], int]:
         """(crashes, loops, distance) of each controller of ``population`` (P, 50), and the
         evaluator cycles spent: streams of at most ``p_max`` controllers."""
@@ -389,15 +403,7 @@ class SystemHost:
         counts, cycles = [], 0
         for first in range(0, len(words), self.p_max):
             chunk = words[first:first + self.p_max]
-            for i, word in enumerate(chunk):
-                pins.set("pop_addr", i)
-                pins.set("pop_data", word)
-                pins.set("pop_we", 1)
-                await pins.tick()
-            pins.set("pop_we", 0)
-            pins.set("pop_size", len(chunk))
-            pins.set("go", 1)
-            await pins.tick()
+            await self.start_stream(chunk)
             pins.set("go", 0)
             await pins.wait("pop_done")
             cycles += pins.get("pop_cycles")

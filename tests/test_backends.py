@@ -173,15 +173,7 @@ def test_streamer_ignores_writes_and_go_while_busy():
     system.call(host.write_model, model)
 
     async def meddling_stream():
-        for i, word in enumerate(genome_words(pop)):
-            pins.set("pop_addr", i)
-            pins.set("pop_data", word)
-            pins.set("pop_we", 1)
-            await pins.tick()
-        pins.set("pop_we", 0)
-        pins.set("pop_size", len(pop))
-        pins.set("go", 1)
-        await pins.tick()
+        await host.start_stream(genome_words(pop))
         for _ in range(60):  # mid-stream: overwrite every genome with an empty one, and go again
             assert pins.get("pop_busy")
             pins.set("pop_addr", int(rng.integers(len(pop))))
