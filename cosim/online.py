@@ -109,6 +109,12 @@ class OnlineConfig:
     # are off until the next target (only loop_window and the time-out stop the leg): a detour
     # that must move away from the ball is not cut again and again; 0: off
     loop_patience: int = 0
+    # > 0: after every this many loop stops on one leg (same target), the loop detectors relax one
+    # level until the next target: loop_repeats and loop_reentries (and loop_window with
+    # relax_window) are doubled per level (a detour that pays off only after a while is no longer
+    # cut at once); 0: off
+    loop_relax: int = 0
+    relax_window: bool = False
     # learning phase
     targeted: int = 0  # state-targeted mutants of the best written into the population per phase
     # after a time-out or loop, download the fittest individual whose motion in the blamed state
@@ -118,6 +124,13 @@ class OnlineConfig:
     # there (fewest blames first; motions the model knows to crash count as blamed), not only the
     # last one: stops the download flipping between two looping motions (docs/online.md)
     escape_memory: bool = False
+    # with escape: after a time-out or loop, download, among the individuals no worse than the
+    # fittest on the model's crashes and loops, the one that repeats the fewest obstacle
+    # (state, motion) steps of the failed leg (ties: fitness): the blame is spread over every
+    # obstacle pair of the leg, not put on one (docs/online.md, round 3). "leg": the steps of the
+    # failing phase since its last target; "target": of every phase failed by a time-out or loop
+    # since the last target; "off": the single blamed state (escape as above)
+    escape_spread: str = "off"
     # NOT the normative model update (SPEC section 7), an option: after a time-out or loop, the
     # blamed (state, motion) is written to the world model so that the fitness sees the real-world
     # loop: "self" = as a transition back to the same state (the fitness counts it as a loop; the
@@ -142,6 +155,8 @@ class OnlineConfig:
             raise ValueError(f"max_leg_steps must be at least 1, got {self.max_leg_steps!r}")
         if self.generations_per_phase < 1:
             raise ValueError(f"generations_per_phase must be at least 1, got {self.generations_per_phase!r}")
+        if self.escape_spread not in ("off", "leg", "target"):
+            raise ValueError(f"escape_spread must be 'off', 'leg' or 'target', got {self.escape_spread!r}")
         if self.loop_key not in ("pair", "motion"):
             raise ValueError(f"loop_key must be 'pair' or 'motion', got {self.loop_key!r}")
         if (self.blind_bit is None) != (self.blind_after_target is None):
@@ -206,6 +221,9 @@ class OnlineRun:
         self.closest = float("inf")
         self.since_closer = 0
         self.entries: Counter = Counter()  # obstacle state -> entries since the last closest approach
+        self.detector = ""  # the loop detector that stopped the last execution phase
+        self.leg_start = 0  # interactions when the last execution phase began or last reached a target
+        self.pre_states: list[int] = []  # the state each motion was chosen in (motions[i] in pre_states[i])
         self.blinded_at: int | None = None
         # --- evolution counters (saved in the checkpoint) ---
         self.generations = 0
@@ -237,6 +255,7 @@ class OnlineRun:
         self.mirror.observe(s, motion, written, step.crashed)
         self.transitions.add((s, motion, step.state, step.crashed))
         self.motions.append(motion)
+        self.pre_states.append(s)
         self.state_log.append(step.state)
         self.interactions += 1
         self.leg_steps += 1
@@ -298,14 +317,16 @@ class OnlineRun:
         if cfg.blame_phase_only:
             self.window.clear()
             self.dists.clear()
-        quick = not cfg.loop_patience or cfg.loop_patience > sum(
-            1 for p in self.phases if p["targets"] == self.targets and p["reason"] == "loop")
+        window, reentries, repeats = self.loop_limits()
+        self.leg_start = self.interactions
         while True:
             s = self.state
             a = self.controller.motion(s)
             step = self._advance(a)
             steps += 1
             if step.reached:
+                self.leg_start = self.interactions
+                window, reentries, repeats = self.loop_limits()  # a new leg: no stops yet
                 if self.progress_bar is not None:
                     self.progress_bar.update(1)
                     self.progress_bar.set_postfix(interactions=self.interactions, generations=self.generations)
@@ -316,14 +337,29 @@ class OnlineRun:
                 return "crash", steps, s, a
             if self.leg_steps >= cfg.max_leg_steps:
                 return "timeout", steps, *self._blame()
-            if cfg.loop_window and self.since_closer >= cfg.loop_window:
+            if window and self.since_closer >= window:
+                self.detector = "window"
                 return "loop", steps, *self._blame()
-            if quick and cfg.loop_reentries and self.entries and max(self.entries.values()) >= cfg.loop_reentries:
+            if reentries and self.entries and max(self.entries.values()) >= reentries:
+                self.detector = "reentries"
                 return "loop", steps, *self._blame()
-            if quick and cfg.loop_repeats and self._periodic(cfg.loop_repeats):
+            if repeats and self._periodic(repeats):
+                self.detector = "repeats"
                 return "loop", steps, *self._blame()
             if cfg.max_interactions and self.interactions >= cfg.max_interactions:
                 return "budget", steps, s, a
+
+    def loop_limits(self) -> tuple[int, int, int]:
+        """The loop detectors' thresholds for the next execution phase, (loop_window,
+        loop_reentries, loop_repeats), 0 = off: the config's, switched off by ``loop_patience``
+        or doubled per ``loop_relax`` loop stops since the last target."""
+        cfg = self.config
+        stops = sum(1 for p in self.phases if p["targets"] == self.targets and p["reason"] == "loop")
+        if cfg.loop_patience and stops >= cfg.loop_patience:
+            return cfg.loop_window, 0, 0
+        scale = 2 ** (stops // cfg.loop_relax) if cfg.loop_relax else 1
+        window = cfg.loop_window * (scale if cfg.relax_window else 1)
+        return window, cfg.loop_reentries * scale, cfg.loop_repeats * scale
 
     def _periodic(self, repeats: int) -> bool:
         """The last ``repeats * p`` pairs repeat one p-cycle (2 <= p <= 6), all since the last new
@@ -364,6 +400,10 @@ class OnlineRun:
             "state": int(state), "motion": int(motion),
             "world_states": self.mirror.n_states, "model_transitions": self.mirror.n_transitions,
         }
+        if reason == "loop":
+            record["detector"] = self.detector  # which loop detector stopped the leg
+        if reason in ("timeout", "loop"):
+            record["leg_start"] = self.leg_start
         if cfg.mark_loops != "off" and reason in ("timeout", "loop") and state & OBSTACLE_MASK \
                 and self.mirror.crash[state].sum() < cfg.mark_limit:
             self._mark(state, motion)
@@ -386,12 +426,14 @@ class OnlineRun:
         i_best = int(np.argmax(last))
         if cfg.escape and reason in ("timeout", "loop") and state & OBSTACLE_MASK:
             motions = _motions_in(pop, state, cfg.reflex)
-            if cfg.escape_memory:
+            if cfg.escape_spread != "off":
+                i_best = self._spread_escape(pop, counts, last, i_best, record)
+            elif cfg.escape_memory:
                 penalty = self._blames(state, motion)[motions]
                 differs = penalty == penalty.min()
             else:
                 differs = motions != motion
-            if differs.any() and not differs[i_best]:
+            if cfg.escape_spread == "off" and differs.any() and not differs[i_best]:
                 i_best = int(np.flatnonzero(differs)[np.argmax(last[differs])])
                 record["escaped"] = True
         best = pop[i_best]
@@ -408,6 +450,34 @@ class OnlineRun:
         })
         record.update(diversity(pop, self.mirror.states))
         self.phases.append(record)
+
+    def _spread_escape(self, pop, counts, fitness, i_best: int, record: dict) -> int:
+        """Option ``escape_spread``: among the individuals no worse than the fittest on the model's
+        crashes and loops, the one whose motions repeat the fewest of the failing phase's obstacle
+        steps (ties: the fittest of them)."""
+        spans = [(self.leg_start, self.interactions)]
+        if self.config.escape_spread == "target":
+            spans += [(p["leg_start"], p["interactions"]) for p in self.phases
+                      if p["targets"] == self.targets and "leg_start" in p]
+        steps = Counter((self.pre_states[i], self.motions[i]) for lo, hi in spans for i in range(lo, hi)
+                        if self.pre_states[i] & OBSTACLE_MASK)
+        if not steps:
+            return i_best
+        from ga.truth_table import truth_tables
+
+        tables = truth_tables(pop, reflex=self.config.reflex)
+        states = np.array([s for s, _ in steps], dtype=np.int64)
+        motions = np.array([a for _, a in steps], dtype=np.int64)
+        weights = np.array(list(steps.values()), dtype=np.int64)
+        repeats = ((tables[:, states] == motions) * weights).sum(axis=1)
+        ok = (counts.crashes <= counts.crashes[i_best]) & (counts.loops <= counts.loops[i_best])
+        cand = np.flatnonzero(ok)
+        order = np.lexsort((-fitness[cand], repeats[cand]))
+        chosen = int(cand[order[0]])
+        record["repeated_steps"] = [int(repeats[i_best]), int(repeats[chosen]), int(weights.sum())]
+        if chosen != i_best:
+            record["escaped"] = True
+        return chosen
 
     def _blames(self, state: int, motion: int) -> np.ndarray:
         """Per motion, how often it was blamed for a time-out or loop in ``state`` (the phase
@@ -690,6 +760,7 @@ def config_from_args(args) -> OnlineConfig:
         escape=args.escape, escape_memory=args.escape_memory,
         blame_phase_only=args.blame_phase_only, loop_key=args.loop_key,
         loop_still_mm=args.loop_still_mm, loop_patience=args.loop_patience,
+        loop_relax=args.loop_relax, relax_window=args.relax_window, escape_spread=args.escape_spread,
         mark_loops=args.mark_loops, model_update=args.model_update,
         blind_bit=args.blind_bit, blind_after_target=args.blind_after_target,
     )
@@ -729,6 +800,15 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--loop-patience", type=int, default=d.loop_patience,
                    help="after this many loop stops at one target, only --loop-window stops a leg "
                         "until the next target (0: off)")
+    p.add_argument("--loop-relax", type=int, default=d.loop_relax,
+                   help="after every K loop stops at one target, double the loop detectors' "
+                        "thresholds until the next target (0: off)")
+    p.add_argument("--escape-spread", choices=("off", "leg", "target"), default=d.escape_spread,
+                   help="escape downloads the individual (no worse on model crashes/loops) that "
+                        "repeats the fewest obstacle steps of the failed leg (leg) or of every "
+                        "failed leg since the last target (target)")
+    p.add_argument("--relax-window", action=argparse.BooleanOptionalAction, default=d.relax_window,
+                   help="--loop-relax also doubles --loop-window")
     p.add_argument("--escape-memory", action=argparse.BooleanOptionalAction, default=d.escape_memory,
                    help="escape avoids every motion blamed for a loop in the blamed state so far")
     p.add_argument("--mark-loops", choices=("off", "self", "crash"), default=d.mark_loops,

@@ -1,0 +1,105 @@
+"""Round-3 options of the on-line loop (cosim.online): relaxing loop detectors, spread escape."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cosim.online import OnlineConfig, make_run
+from cosim.boards import EvalCounts
+from ga.motions import OBSTACLE_MASK
+from ga.operators import random_population
+from ga.truth_table import truth_tables
+
+SMALL = dict(arena="one_obstacle", n_targets=4, population=40, tournament=5, generations_per_phase=3,
+             max_leg_steps=300, loop_window=60)
+
+
+def _loop(targets: int) -> dict:
+    return {"reason": "loop", "targets": targets}
+
+
+def test_loop_relax_doubles_the_detectors_per_k_stops_at_one_target():
+    run = make_run(OnlineConfig(seed=1, **{**SMALL, "loop_window": 50, "loop_reentries": 6,
+                                           "loop_repeats": 4, "loop_relax": 3}))
+    assert run.loop_limits() == (50, 6, 4)
+    run.phases = [_loop(0)] * 2 + [{"reason": "crash", "targets": 0}] * 5
+    assert run.loop_limits() == (50, 6, 4)  # crashes do not count
+    run.phases.append(_loop(0))
+    assert run.loop_limits() == (50, 12, 8)  # the window stays unless relax_window
+    run.phases += [_loop(0)] * 3
+    assert run.loop_limits() == (50, 24, 16)
+    run.targets = 1  # a new target: the stops of the earlier one no longer count
+    assert run.loop_limits() == (50, 6, 4)
+    wide = make_run(OnlineConfig(seed=1, **{**SMALL, "loop_window": 50, "loop_relax": 3,
+                                            "relax_window": True}))
+    wide.phases = [_loop(0)] * 7
+    assert wide.loop_limits() == (200, 0, 0)
+    patient = make_run(OnlineConfig(seed=1, **{**SMALL, "loop_reentries": 6, "loop_patience": 2}))
+    patient.phases = [_loop(0)] * 2
+    assert patient.loop_limits() == (60, 0, 0)
+
+
+def test_relaxed_window_stops_no_leg_before_its_threshold():
+    run = make_run(OnlineConfig(seed=5, **{**SMALL, "loop_window": 15, "loop_relax": 1,
+                                           "relax_window": True})).run()
+    stops: dict[int, int] = {}
+    levels = []
+    for p in run.phases:
+        if p["reason"] != "loop":
+            continue
+        level = stops.get(p["targets"], 0)
+        stops[p["targets"]] = level + 1
+        if p["detector"] == "window" and p["leg_steps"] == p["execution_steps"]:
+            assert p["execution_steps"] >= 15 * 2 ** level, p
+            levels.append(level)
+    assert max(levels) >= 2, "the test needs a leg with several loop stops"
+
+
+def _spread_setup(mode: str):
+    run = make_run(OnlineConfig(seed=2, **{**SMALL, "escape_spread": mode}))
+    rng = np.random.default_rng(7)
+    pop = random_population(rng, 30)
+    tables = truth_tables(pop, reflex=True)
+    obstacle = [s for s in range(256) if s & OBSTACLE_MASK][:40]
+    # The failed leg: individual 0's motions in 40 obstacle states, plus free-space steps (ignored).
+    run.pre_states = obstacle + [64, 128]
+    run.motions = [int(tables[0, s]) for s in obstacle] + [2, 3]
+    run.interactions, run.leg_start = len(run.motions), 0
+    zeros = np.zeros(30, dtype=np.int64)
+    counts = EvalCounts(crashes=zeros.copy(), loops=zeros.copy(), distance=zeros.copy())
+    fitness = np.linspace(1.0, 0.5, 30)  # individual 0 is the fittest
+    repeats = np.array([sum(tables[i, s] == tables[0, s] for s in obstacle) for i in range(30)])
+    return run, pop, counts, fitness, repeats
+
+
+def test_spread_escape_downloads_the_individual_repeating_fewest_failed_steps():
+    run, pop, counts, fitness, repeats = _spread_setup("leg")
+    record: dict = {}
+    chosen = run._spread_escape(pop, counts, fitness, 0, record)
+    fewest = np.flatnonzero(repeats == repeats.min())
+    assert chosen == fewest[0]  # ties: the fittest (the lowest index here)
+    assert record["repeated_steps"] == [40, int(repeats.min()), 40] and record["escaped"]
+    # An individual worse on the model's crashes is never chosen, however different it is.
+    counts.crashes[chosen] = 1
+    again = run._spread_escape(pop, counts, fitness, 0, {})
+    assert again != chosen and repeats[again] == np.sort(repeats[np.arange(30) != chosen])[0]
+
+
+def test_spread_escape_target_mode_adds_every_failed_leg_since_the_target():
+    run, pop, counts, fitness, repeats = _spread_setup("target")
+    run.phases = [{"reason": "loop", "targets": 0, "leg_start": 0, "interactions": 20},
+                  {"reason": "loop", "targets": 5, "leg_start": 20, "interactions": 42}]
+    run.leg_start = 20
+    record: dict = {}
+    run._spread_escape(pop, counts, fitness, 0, record)
+    assert record["repeated_steps"][2] == 20 + 20  # steps 0-19 (earlier loop) + 20-39 (this leg)
+    run.config = OnlineConfig(seed=2, **{**SMALL, "escape_spread": "leg"})
+    record = {}
+    run._spread_escape(pop, counts, fitness, 0, record)
+    assert record["repeated_steps"][2] == 20
+
+
+def test_spread_escape_mode_is_checked():
+    with pytest.raises(ValueError, match="escape_spread"):
+        OnlineConfig(escape_spread="all")
