@@ -36,6 +36,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+import math
 import sys
 import time
 from collections import Counter, deque
@@ -49,7 +50,7 @@ from cosim.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
 from ga.evaluator import fitness as model_fitness
 from ga.evolution import GAConfig, GeneticAlgorithm
 from ga.genome import hex_from_rows, rows_from_hex
-from ga.motions import OBSTACLE_MASK
+from ga.motions import MOTION_ROTATION_DEG, MOTION_TRANSLATION_MM, OBSTACLE_MASK
 from ga.online_operators import diversity, targeted_mutants
 from ga.world_model import WorldModel
 from sim_world.world import DEFAULT_NOISE, Fault, World
@@ -114,6 +115,12 @@ class OnlineConfig:
     # relax_window) are doubled per level (a detour that pays off only after a while is no longer
     # cut at once); 0: off
     loop_relax: int = 0
+    # > 0: the loop detectors ask, besides, that the robot be back where it was, by odometry (the
+    # commanded motions dead-reckoned, crashes not moving it): loop_reentries counts an entry
+    # into a state only among the earlier entries (since the last new closest approach) within
+    # this many mm, loop_repeats fires only if the repeated cycles moved the robot less than
+    # this; a wall followed or a detour is not a loop. 0: off
+    loop_radius_mm: float = 0.0
     relax_window: bool = False
     # learning phase
     targeted: int = 0  # state-targeted mutants of the best written into the population per phase
@@ -218,6 +225,9 @@ class OnlineRun:
         self.known_crash_repeats = 0  # motions chosen in a state where the model knows they crash
         self.window = deque(maxlen=max(config.loop_window, 64))  # recent (state, motion)
         self.dists = deque(maxlen=self.window.maxlen)  # the ball distance after each of them
+        self.odometry = [0.0, 0.0, 0.0]  # dead-reckoned (x, y, heading) from the commanded motions
+        self.odo_hist = deque(maxlen=self.window.maxlen)  # the odometry position after each pair
+        self.entry_pos: dict[int, list[tuple[float, float]]] = {}  # state -> odometry at its entries
         self.closest = float("inf")
         self.since_closer = 0
         self.entries: Counter = Counter()  # obstacle state -> entries since the last closest approach
@@ -261,6 +271,13 @@ class OnlineRun:
         self.leg_steps += 1
         self.window.append((s, motion))
         self.dists.append(step.distance_mm)
+        if not step.crashed:
+            ox, oy, oh = self.odometry
+            turn = math.radians(float(MOTION_ROTATION_DEG[motion]))
+            move = float(MOTION_TRANSLATION_MM[motion])
+            self.odometry = [ox + move * math.cos(oh + turn / 2), oy + move * math.sin(oh + turn / 2),
+                             oh + turn]
+        self.odo_hist.append((self.odometry[0], self.odometry[1]))
         self.curve_states.append(self.mirror.n_states)
         self.curve_transitions.append(self.mirror.n_transitions)
         x, y, _ = self.world.pose
@@ -283,18 +300,29 @@ class OnlineRun:
             self.leg_steps = 0
             self.closest, self.since_closer = float("inf"), 0
             self.entries.clear()
+            self.entry_pos.clear()
             self.window.clear()
             self.dists.clear()
+            self.odo_hist.clear()
             self.trajectory.append((*self.world.pose[:2], "relocate"))
         else:
             self.trajectory.append((x, y, ""))
         if step.distance_mm < self.closest - 1e-9:
             self.closest, self.since_closer = step.distance_mm, 0
             self.entries.clear()
+            self.entry_pos.clear()
         else:
             self.since_closer += 1
             if self.state != s and self.state & OBSTACLE_MASK:
-                self.entries[self.state] += 1
+                radius = self.config.loop_radius_mm
+                if radius:
+                    x0, y0 = self.odometry[0], self.odometry[1]
+                    seen = self.entry_pos.setdefault(self.state, [])
+                    seen.append((x0, y0))
+                    self.entries[self.state] = sum(
+                        1 for x1, y1 in seen if math.hypot(x1 - x0, y1 - y0) <= radius)
+                else:
+                    self.entries[self.state] += 1
         return step
 
     def _mark(self, state: int, motion: int) -> None:
@@ -314,9 +342,11 @@ class OnlineRun:
         self.leg_steps = 0
         self.closest, self.since_closer = float("inf"), 0
         self.entries.clear()
+        self.entry_pos.clear()
         if cfg.blame_phase_only:
             self.window.clear()
             self.dists.clear()
+            self.odo_hist.clear()
         window, reentries, repeats = self.loop_limits()
         self.leg_start = self.interactions
         while True:
@@ -373,6 +403,10 @@ class OnlineRun:
             if self.config.loop_key == "motion":
                 tail = [a for _, a in tail]
             if all(tail[i] == tail[i % p] for i in range(n)) and len(set(tail[:p])) > 1:
+                if self.config.loop_radius_mm:
+                    (x0, y0), (x1, y1) = self.odo_hist[-n], self.odo_hist[-1]
+                    if math.hypot(x1 - x0, y1 - y0) > self.config.loop_radius_mm:
+                        continue  # the cycle moves the robot on: not a loop
                 if not self.config.loop_still_mm:
                     return True
                 # a loop goes nowhere: one cycle later the ball is as far as it was (a wall
@@ -760,7 +794,7 @@ def config_from_args(args) -> OnlineConfig:
         escape=args.escape, escape_memory=args.escape_memory,
         blame_phase_only=args.blame_phase_only, loop_key=args.loop_key,
         loop_still_mm=args.loop_still_mm, loop_patience=args.loop_patience,
-        loop_relax=args.loop_relax, relax_window=args.relax_window, escape_spread=args.escape_spread,
+        loop_relax=args.loop_relax, loop_radius_mm=args.loop_radius_mm, relax_window=args.relax_window, escape_spread=args.escape_spread,
         mark_loops=args.mark_loops, model_update=args.model_update,
         blind_bit=args.blind_bit, blind_after_target=args.blind_after_target,
     )
@@ -807,6 +841,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="escape downloads the individual (no worse on model crashes/loops) that "
                         "repeats the fewest obstacle steps of the failed leg (leg) or of every "
                         "failed leg since the last target (target)")
+    p.add_argument("--loop-radius-mm", type=float, default=d.loop_radius_mm,
+                   help="loop_reentries/loop_repeats fire only if the robot is back within this "
+                        "distance by odometry (commanded motions; 0: off)")
     p.add_argument("--relax-window", action=argparse.BooleanOptionalAction, default=d.relax_window,
                    help="--loop-relax also doubles --loop-window")
     p.add_argument("--escape-memory", action=argparse.BooleanOptionalAction, default=d.escape_memory,

@@ -103,3 +103,40 @@ def test_spread_escape_target_mode_adds_every_failed_leg_since_the_target():
 def test_spread_escape_mode_is_checked():
     with pytest.raises(ValueError, match="escape_spread"):
         OnlineConfig(escape_spread="all")
+
+
+def _scripted(run, states):
+    """Make ``run.world.step`` return ``states`` in turn (no crash, no target, the ball 1 m away)."""
+    from sim_world.world import Step
+
+    it = iter(states)
+    run.world.step = lambda motion: Step(next(it), False, False, 1000.0)
+
+
+@pytest.mark.parametrize("motions, expected", [((0, 0), 1), ((2, 3), 3)])
+def test_loop_radius_counts_only_reentries_at_the_same_place(motions, expected):
+    """Entering state 1 every other step: moving on (forward, 50 mm a step) is no loop; turning
+    left and right in place is."""
+    run = make_run(OnlineConfig(seed=1, **{**SMALL, "loop_reentries": 6, "loop_radius_mm": 60.0}))
+    _scripted(run, [2, 1] * 3)
+    for k in range(6):
+        run._advance(motions[k % 2])
+    assert run.entries[1] == expected
+    plain = make_run(OnlineConfig(seed=1, **{**SMALL, "loop_reentries": 6}))
+    _scripted(plain, [2, 1] * 3)
+    for k in range(6):
+        plain._advance(motions[k % 2])
+    assert plain.entries[1] == 3  # without the radius every re-entry counts
+
+
+def test_odometry_dead_reckons_the_commanded_motions():
+    run = make_run(OnlineConfig(seed=1, **SMALL))
+    _scripted(run, [2] * 4)
+    for motion in (0, 2, 4, 1):  # forward, turn left, forward-left, backward
+        run._advance(motion)
+    import math
+
+    h = math.radians(22.5)
+    x = 50 + 50 * math.cos(h + h / 2) - 50 * math.cos(2 * h)
+    y = 50 * math.sin(h + h / 2) - 50 * math.sin(2 * h)
+    assert run.odometry == pytest.approx([x, y, 2 * h])
