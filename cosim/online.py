@@ -138,6 +138,13 @@ class OnlineConfig:
     # failing phase since its last target; "target": of every phase failed by a time-out or loop
     # since the last target; "off": the single blamed state (escape as above)
     escape_spread: str = "off"
+    # > 0: after a time-out or loop, this many copies of the fittest individual get, in each of
+    # the (up to 4) obstacle states the failed leg visited most often (at least twice), a motion
+    # not yet executed there in a failed leg since the last target nor known to crash there
+    # (ga.operators.set_state_motion); they are evaluated on the model (counted as genetic
+    # operations) and the fittest of those no worse than the fittest individual on the model's
+    # crashes and loops is downloaded and written into the population; 0: off
+    escape_rewrite: int = 0
     # NOT the normative model update (SPEC section 7), an option: after a time-out or loop, the
     # blamed (state, motion) is written to the world model so that the fitness sees the real-world
     # loop: "self" = as a transition back to the same state (the fitness counts it as a loop; the
@@ -471,6 +478,8 @@ class OnlineRun:
                 i_best = int(np.flatnonzero(differs)[np.argmax(last[differs])])
                 record["escaped"] = True
         best = pop[i_best]
+        if cfg.escape_rewrite and reason in ("timeout", "loop") and state & OBSTACLE_MASK:
+            best = self._rewrite_escape(pop[int(np.argmax(last))], counts, int(np.argmax(last)), best, record)
         self.best_rows = best.copy()
         self.controller.load(best)
         record.update({
@@ -489,12 +498,7 @@ class OnlineRun:
         """Option ``escape_spread``: among the individuals no worse than the fittest on the model's
         crashes and loops, the one whose motions repeat the fewest of the failing phase's obstacle
         steps (ties: the fittest of them)."""
-        spans = [(self.leg_start, self.interactions)]
-        if self.config.escape_spread == "target":
-            spans += [(p["leg_start"], p["interactions"]) for p in self.phases
-                      if p["targets"] == self.targets and "leg_start" in p]
-        steps = Counter((self.pre_states[i], self.motions[i]) for lo, hi in spans for i in range(lo, hi)
-                        if self.pre_states[i] & OBSTACLE_MASK)
+        steps = self._failed_steps(self.config.escape_spread)
         if not steps:
             return i_best
         from ga.truth_table import truth_tables
@@ -512,6 +516,53 @@ class OnlineRun:
         if chosen != i_best:
             record["escaped"] = True
         return chosen
+
+    def _failed_steps(self, mode: str) -> Counter:
+        """The obstacle (state, motion) steps of the failed leg ("leg") or of every leg failed by
+        a time-out or loop since the last target ("target")."""
+        spans = [(self.leg_start, self.interactions)]
+        if mode == "target":
+            spans += [(p["leg_start"], p["interactions"]) for p in self.phases
+                      if p["targets"] == self.targets and "leg_start" in p]
+        return Counter((self.pre_states[i], self.motions[i]) for lo, hi in spans for i in range(lo, hi)
+                       if self.pre_states[i] & OBSTACLE_MASK)
+
+    def _rewrite_escape(self, fittest, counts, i_fit: int, fallback, record: dict) -> np.ndarray:
+        """Option ``escape_rewrite``: copies of ``fittest`` with new motions in the failed leg's
+        most visited obstacle states; the fittest copy no worse on the model's crashes and loops
+        (else ``fallback``, the plain escape's choice)."""
+        from ga.operators import set_state_motion
+
+        leg = Counter()
+        for (s, _a), n in self._failed_steps("leg").items():
+            leg[s] += n
+        states = [s for s, n in leg.most_common(4) if n >= 2]
+        if not states:
+            return fallback
+        tried = {s: set(np.flatnonzero(self.mirror.crash[s]).tolist()) for s in states}
+        for (s, a) in self._failed_steps("target"):
+            if s in tried:
+                tried[s].add(a)
+        copies = []
+        for _ in range(self.config.escape_rewrite):
+            rows = fittest.copy()
+            for s in states:
+                free = ([m for m in range(8) if m not in tried[s]]
+                        or [m for m in range(8) if not self.mirror.crash[s, m]] or list(range(8)))
+                rows = set_state_motion(self.rng, rows, s, int(self.rng.choice(free)))
+            copies.append(rows)
+        copies = np.stack(copies)
+        got = self.evaluator.evaluate(copies)
+        self.genetic_operations += copies.shape[0]
+        fit = model_fitness(got, self.mirror.n_states)
+        ok = (got.crashes <= counts.crashes[i_fit]) & (got.loops <= counts.loops[i_fit])
+        record["rewritten_states"] = [int(s) for s in states]
+        if not ok.any():
+            return fallback
+        i = int(np.flatnonzero(ok)[np.argmax(fit[ok])])
+        self.ga.replace(self.config.population - 1, copies[i])
+        record["escaped"] = record["rewritten"] = True
+        return copies[i]
 
     def _blames(self, state: int, motion: int) -> np.ndarray:
         """Per motion, how often it was blamed for a time-out or loop in ``state`` (the phase
@@ -794,7 +845,7 @@ def config_from_args(args) -> OnlineConfig:
         escape=args.escape, escape_memory=args.escape_memory,
         blame_phase_only=args.blame_phase_only, loop_key=args.loop_key,
         loop_still_mm=args.loop_still_mm, loop_patience=args.loop_patience,
-        loop_relax=args.loop_relax, loop_radius_mm=args.loop_radius_mm, relax_window=args.relax_window, escape_spread=args.escape_spread,
+        escape_rewrite=args.escape_rewrite, loop_relax=args.loop_relax, loop_radius_mm=args.loop_radius_mm, relax_window=args.relax_window, escape_spread=args.escape_spread,
         mark_loops=args.mark_loops, model_update=args.model_update,
         blind_bit=args.blind_bit, blind_after_target=args.blind_after_target,
     )
@@ -844,6 +895,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--loop-radius-mm", type=float, default=d.loop_radius_mm,
                    help="loop_reentries/loop_repeats fire only if the robot is back within this "
                         "distance by odometry (commanded motions; 0: off)")
+    p.add_argument("--escape-rewrite", type=int, default=d.escape_rewrite, metavar="M",
+                   help="after a loop/time-out, download the fittest of M copies of the best with "
+                        "new motions in the failed leg's most visited obstacle states (0: off)")
     p.add_argument("--relax-window", action=argparse.BooleanOptionalAction, default=d.relax_window,
                    help="--loop-relax also doubles --loop-window")
     p.add_argument("--escape-memory", action=argparse.BooleanOptionalAction, default=d.escape_memory,

@@ -140,3 +140,34 @@ def test_odometry_dead_reckons_the_commanded_motions():
     x = 50 + 50 * math.cos(h + h / 2) - 50 * math.cos(2 * h)
     y = 50 * math.sin(h + h / 2) - 50 * math.sin(2 * h)
     assert run.odometry == pytest.approx([x, y, 2 * h])
+
+
+def test_rewrite_escape_downloads_new_untried_motions_in_the_loop_states():
+    run = make_run(OnlineConfig(seed=2, **{**SMALL, "escape_rewrite": 10}))
+    rng = np.random.default_rng(3)
+    pop = random_population(rng, 30)
+    fittest = pop[0]
+    table = truth_tables(fittest, reflex=True)
+    s1, s2 = 1, 66  # obstacle front / ball front; obstacle front-left / ball left
+    a1, a2 = int(table[s1]), int(table[s2])
+    crash = next(m for m in range(8) if m != a1)
+    for board in (run.evaluator, run.mirror):  # a crash the model knows: never chosen
+        board.observe(s1, crash, s1, True)
+        board.observe(s1, a1, s2, False)
+        board.observe(s2, a2, s1, False)
+    run.pre_states = [s1, s2] * 5
+    run.motions = [a1, a2] * 5
+    run.interactions, run.leg_start = 10, 0
+    zeros = np.zeros(30, dtype=np.int64)
+    counts = EvalCounts(crashes=zeros.copy(), loops=zeros + 1, distance=zeros.copy())
+    before = run.genetic_operations
+    record: dict = {}
+    rows = run._rewrite_escape(fittest, counts, 0, pop[5], record)
+    new = truth_tables(rows, reflex=True)
+    assert record["rewritten"] and sorted(record["rewritten_states"]) == [s1, s2]
+    assert new[s1] not in (a1, crash) and new[s2] != a2
+    assert run.genetic_operations == before + 10
+    assert np.array_equal(run.ga.ask()[-1], rows)  # it joins the population
+    # Nothing no worse on the model than the fittest: the plain escape's choice is kept.
+    strict = EvalCounts(crashes=zeros.copy(), loops=zeros - 1, distance=zeros.copy())
+    assert np.array_equal(run._rewrite_escape(fittest, strict, 0, pop[5], {}), pop[5])
