@@ -10,7 +10,8 @@ an observation each) through the board interface from a blocking thread (cocotb:
 ``resume``, as the experiment runs). Cycles/s counts every clock edge the call spent, transfers
 included, per CPU second of the simulating process (``time.process_time``: steady on a shared
 machine; ``*_per_wall_s`` beside it). The cocotb figures come from a cocotb test in this module
-run by ``run_cocotb`` (Icarus and the cocotb Python run in one process).
+run by ``run_cocotb`` (the simulator and the cocotb Python run in one process), once on Icarus
+(``cocotb_*``) and once on Verilator (``cocotb_verilator_*``).
 """
 
 from __future__ import annotations
@@ -92,7 +93,7 @@ if cocotb is not None:
         Path(os.environ[RESULT_ENV]).write_text(json.dumps(figures))
 
 
-def cocotb_figures() -> dict:
+def cocotb_figures(simulator: str = "icarus") -> dict:
     from cosim.cocotb_backend import write_system_verilog
     from cosim.cocotb_run import REPO_ROOT, run_cocotb
 
@@ -101,7 +102,7 @@ def cocotb_figures() -> dict:
         src = write_system_verilog(tmp)
         run_cocotb(sources=[src], toplevel="system_top", test_module="benchmarks.bench_hdl",
                    test_dir=REPO_ROOT, build_name="system_top_bench", testcase="throughput",
-                   extra_env={RESULT_ENV: str(out)}, waves=False)
+                   extra_env={RESULT_ENV: str(out)}, waves=False, simulator=simulator)
         return json.loads(out.read_text())
 
 
@@ -128,11 +129,16 @@ def reference_figures() -> dict:
 
 
 def run() -> dict:
-    coco = cocotb_figures()
+    coco = cocotb_figures("icarus")
+    veri = cocotb_figures("verilator")
     ama = amaranth_figures()
     ref = reference_figures()
     return {
+        # cocotb_* = cocotb on Icarus; cocotb_verilator_* = the same test on Verilator
         "cocotb_cycles_per_s": round(coco["eval_cycles_per_s"]),
+        "cocotb_verilator_cycles_per_s": round(veri["eval_cycles_per_s"]),
+        "cocotb_verilator_controllers_per_s": round(veri["controllers_per_s"], 1),
+        "cocotb_verilator_interactions_per_s": round(veri["interactions_per_s"], 1),
         "amaranth_cycles_per_s": round(ama["eval_cycles_per_s"]),
         "cocotb_cycles_per_wall_s": round(coco["eval_cycles_per_wall_s"]),
         "amaranth_cycles_per_wall_s": round(ama["eval_cycles_per_wall_s"]),

@@ -5,8 +5,8 @@ Verilog of both EHW boards in Icarus Verilog.
 
 The process that is started (``python -m cosim.online``) only launches the simulation
 (:func:`run_online_cocotb`): it writes ``system_top.v`` (``hdl.system_top.SystemTop``: controller
-EHW + evaluator EHW + population streamer), builds it with Icarus through
-``cosim.cocotb_run.run_cocotb`` and runs this module's cocotb test :func:`online_experiment`,
+EHW + evaluator EHW + population streamer), builds it with Icarus (or Verilator: ``EHW_SIM``,
+``make sim BACKEND=cocotb SIM=verilator``) through ``cosim.cocotb_run.run_cocotb`` and runs this module's cocotb test :func:`online_experiment`,
 passing the run's configuration and options in environment variables (``EHW_ONLINE_CONFIG``,
 ``EHW_ONLINE_OPTIONS``, JSON). Inside the simulator the test starts the clock, resets the top, waits
 for the evaluator's RAM sweep, and runs the whole experiment loop of ``cosim.online`` in a thread
@@ -99,7 +99,7 @@ class CocotbSystem:
         """Clock, synchronous reset, then the evaluator's RAM sweep (Boot + Clear)."""
         from cocotb.clock import Clock
 
-        Clock(self.dut.clk, CLOCK_PERIOD_NS, unit="ns").start(start_high=False)
+        Clock(self.dut.clk, CLOCK_PERIOD_NS, unit="ns", impl="gpi").start(start_high=False)
         self.dut.rst.value = 1
         await self.pins.tick()  # the first falling edge is the clock's start: no rising edge yet
         await self.pins.tick()
@@ -204,18 +204,20 @@ def write_system_verilog(out_dir: Path | str | None = None, p_max: int | None = 
 
 def run_online_cocotb(config, out: Path | str, *, resume: bool = False, plots: bool = False,
                       progress: bool = False, waves: bool | None = None, clock_hz: float | None = None,
-                      sample: int | None = None, build_name: str = TOPLEVEL) -> dict:
+                      sample: int | None = None, build_name: str = TOPLEVEL,
+                      simulator: str | None = None) -> dict:
     """Run the on-line experiment ``config`` (a ``cosim.online.OnlineConfig``) inside a cocotb
     test on the Verilog boards; returns the summary the test wrote to ``out/summary.json``.
     ``sample``: HDL-evaluate only that many controllers per population (spot-check mode; default
-    ``EHW_HDL_SAMPLE`` or all)."""
-    from cosim.cocotb_run import REPO_ROOT, run_cocotb
+    ``EHW_HDL_SAMPLE`` or all). ``simulator``: ``icarus`` or ``verilator`` (default ``EHW_SIM``
+    or Icarus; see ``cosim.cocotb_run``)."""
+    from cosim.cocotb_run import REPO_ROOT, SIM_BUILD, run_cocotb
 
     out = Path(out).resolve()
     out.mkdir(parents=True, exist_ok=True)
     summary_path = out / "summary.json"
     summary_path.unlink(missing_ok=True)
-    source = write_system_verilog()
+    source = write_system_verilog(SIM_BUILD / f"{build_name}_verilog")  # one per build: runs may overlap
     options = {"out": str(out), "resume": resume, "plots": plots, "progress": progress}
     env = {CONFIG_ENV: json.dumps(config.to_dict()), OPTIONS_ENV: json.dumps(options),
            "EHW_CLOCK_HZ": str(clock_hz if clock_hz is not None else clock_hz_default())}
@@ -224,17 +226,20 @@ def run_online_cocotb(config, out: Path | str, *, resume: bool = False, plots: b
     run_cocotb(
         sources=[source], toplevel=TOPLEVEL, test_module="cosim.cocotb_backend", test_dir=REPO_ROOT,
         build_name=build_name, testcase="online_experiment", waves=waves,
-        extra_env=env,
+        extra_env=env, simulator=simulator,
     )
     return json.loads(summary_path.read_text())
 
 
 def main_from_args(args, config) -> int:
     """``python -m cosim.online --backend cocotb ...``: launch the simulation, print its summary."""
+    from cosim.cocotb_run import simulator_default
     from cosim.online import summary_table
 
+    simulator = simulator_default()
+    print(f"cocotb backend on {simulator} ({'EHW_SIM' if os.environ.get('EHW_SIM') else 'default'})")
     summary = run_online_cocotb(config, args.out, resume=args.resume, plots=not args.no_plots,
-                                progress=not args.no_progress)
+                                progress=not args.no_progress, simulator=simulator)
     print(summary_table(summary))
     if "hardware" in summary and "evaluator EHW" not in summary_table(summary):
         print(hardware_line(summary))

@@ -5,8 +5,8 @@
 - The cycle model of a population stream (``cosim.hardware_time.stream_cycles``) against the
   simulated ``pop_cycles`` (Amaranth's simulator).
 - Equivalence: one short on-line run (one obstacle, 3 targets, population 16) on the reference,
-  Amaranth and cocotb backends gives the identical sequence of motions, downloaded controllers,
-  evaluation results, interactions, generations and counts; the two HDL backends report the same
+  Amaranth and cocotb backends (cocotb on Icarus and on Verilator) gives the identical sequence of motions, downloaded controllers,
+  evaluation results, interactions, generations and counts; the HDL backends report the same
   clock cycles, equal to the cycle model.
 """
 
@@ -73,6 +73,15 @@ def cocotb_run(tmp_path_factory):
     return summary, json.loads((out / "board_log.json").read_text())
 
 
+@pytest.fixture(scope="module")
+def cocotb_verilator_run(tmp_path_factory):
+    from cosim.cocotb_backend import run_online_cocotb
+
+    out = tmp_path_factory.mktemp("cocotb_verilator_online")
+    summary = run_online_cocotb(SHORT, out, build_name="system_top_online_test", simulator="verilator")
+    return summary, json.loads((out / "board_log.json").read_text())
+
+
 def test_short_run_exercises_the_loop(reference_run):
     summary, log = reference_run
     assert summary["targets_reached"] == SHORT.n_targets
@@ -82,7 +91,10 @@ def test_short_run_exercises_the_loop(reference_run):
     assert len(set(log["evaluations"])) > 1
 
 
-@pytest.mark.parametrize("backend", ["amaranth", "amaranth_sampled", pytest.param("cocotb", marks=pytest.mark.cocotb)])
+@pytest.mark.parametrize("backend", [
+    "amaranth", "amaranth_sampled", pytest.param("cocotb", marks=pytest.mark.cocotb),
+    pytest.param("cocotb_verilator", marks=[pytest.mark.cocotb, pytest.mark.verilator]),
+])
 def test_backend_is_identical_to_reference(backend, reference_run, request):
     summary, log = request.getfixturevalue(f"{backend}_run")
     ref_summary, ref_log = reference_run
@@ -94,11 +106,12 @@ def test_backend_is_identical_to_reference(backend, reference_run, request):
 
 
 @pytest.mark.cocotb
-def test_hdl_backends_count_the_same_cycles(amaranth_run, cocotb_run, reference_run):
-    (ama, _), (coco, _), (ref, _) = amaranth_run, cocotb_run, reference_run
-    assert ama["board_cycles"] == coco["board_cycles"]
+@pytest.mark.verilator
+def test_hdl_backends_count_the_same_cycles(amaranth_run, cocotb_run, cocotb_verilator_run, reference_run):
+    (ama, _), (coco, _), (veri, _), (ref, _) = amaranth_run, cocotb_run, cocotb_verilator_run, reference_run
+    assert ama["board_cycles"] == coco["board_cycles"] == veri["board_cycles"]
     assert ama["board_cycles"]["evaluator"] > 0 and ama["board_cycles"]["controller"] > 0
-    for hw in (ama["hardware"], coco["hardware"]):
+    for hw in (ama["hardware"], coco["hardware"], veri["hardware"]):
         assert hw["evaluator_cycles_source"] == "simulated"
         assert hw["evaluator_cycles"] == hw["evaluator_cycles_model"] == ref["hardware"]["evaluator_cycles"]
     assert ref["hardware"]["evaluator_cycles_source"] == "model"
