@@ -145,6 +145,12 @@ class OnlineConfig:
     # operations) and the fittest of those no worse than the fittest individual on the model's
     # crashes and loops is downloaded and written into the population; 0: off
     escape_rewrite: int = 0
+    # at every download (after crashes too), among the individuals no worse than the fittest on
+    # the model's crashes and loops, the one whose motions in the model's obstacle states carry
+    # the least blame (ties: fitness); the blame of (state, motion) = its steps in legs failed by
+    # a time-out or loop minus its steps in legs that reached the target, over the lifetime (a
+    # loop the model cannot hold is remembered here instead; docs/online.md, round 3)
+    escape_credit: bool = False
     # NOT the normative model update (SPEC section 7), an option: after a time-out or loop, the
     # blamed (state, motion) is written to the world model so that the fitness sees the real-world
     # loop: "self" = as a transition back to the same state (the fitness counts it as a loop; the
@@ -480,6 +486,10 @@ class OnlineRun:
         best = pop[i_best]
         if cfg.escape_rewrite and reason in ("timeout", "loop") and state & OBSTACLE_MASK:
             best = self._rewrite_escape(pop[int(np.argmax(last))], counts, int(np.argmax(last)), best, record)
+        if cfg.escape_credit:
+            fit = int(np.argmax(last))
+            if not (cfg.escape_rewrite and record.get("rewritten")):
+                best = pop[self._credit_choice(pop, counts, last, fit, record)]
         self.best_rows = best.copy()
         self.controller.load(best)
         record.update({
@@ -515,6 +525,38 @@ class OnlineRun:
         record["repeated_steps"] = [int(repeats[i_best]), int(repeats[chosen]), int(weights.sum())]
         if chosen != i_best:
             record["escaped"] = True
+        return chosen
+
+    def _blame_table(self, current: dict | None = None) -> np.ndarray:
+        """(256, 8) blame of every (state, motion): steps in legs failed by a time-out or loop
+        minus steps in legs that reached the target (rebuilt from the records: resume-safe)."""
+        blame = np.zeros((256, 8), dtype=np.int64)
+        s, a = np.array(self.pre_states, dtype=np.int64), np.array(self.motions, dtype=np.int64)
+        ends = sorted([p["interactions"] for p in self.phases])
+        for p in self.phases + ([current] if current else []):
+            if "leg_start" in p:
+                np.add.at(blame, (s[p["leg_start"]:p["interactions"]], a[p["leg_start"]:p["interactions"]]), 1)
+        last = 0
+        for rec in self.target_log:
+            end = rec["interactions"]
+            start = max([last] + [e for e in ends if e < end])
+            np.add.at(blame, (s[start:end], a[start:end]), -1)
+            last = end
+        return blame
+
+    def _credit_choice(self, pop, counts, fitness, i_fit: int, record: dict) -> int:
+        """Option ``escape_credit``: the index to download."""
+        from ga.truth_table import truth_tables
+
+        blame = np.maximum(self._blame_table(record), 0)
+        states = np.array([q for q in self.mirror.states if q & OBSTACLE_MASK], dtype=np.int64)
+        if states.size == 0 or not blame.any():
+            return i_fit
+        tables = truth_tables(pop, reflex=self.config.reflex)[:, states]
+        penalty = blame[states[None, :], tables].sum(axis=1)
+        ok = np.flatnonzero((counts.crashes <= counts.crashes[i_fit]) & (counts.loops <= counts.loops[i_fit]))
+        chosen = int(ok[np.lexsort((-fitness[ok], penalty[ok]))[0]])
+        record["blame"] = [int(penalty[i_fit]), int(penalty[chosen])]
         return chosen
 
     def _failed_steps(self, mode: str) -> Counter:
@@ -845,7 +887,7 @@ def config_from_args(args) -> OnlineConfig:
         escape=args.escape, escape_memory=args.escape_memory,
         blame_phase_only=args.blame_phase_only, loop_key=args.loop_key,
         loop_still_mm=args.loop_still_mm, loop_patience=args.loop_patience,
-        escape_rewrite=args.escape_rewrite, loop_relax=args.loop_relax, loop_radius_mm=args.loop_radius_mm, relax_window=args.relax_window, escape_spread=args.escape_spread,
+        escape_rewrite=args.escape_rewrite, escape_credit=args.escape_credit, loop_relax=args.loop_relax, loop_radius_mm=args.loop_radius_mm, relax_window=args.relax_window, escape_spread=args.escape_spread,
         mark_loops=args.mark_loops, model_update=args.model_update,
         blind_bit=args.blind_bit, blind_after_target=args.blind_after_target,
     )
@@ -898,6 +940,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--escape-rewrite", type=int, default=d.escape_rewrite, metavar="M",
                    help="after a loop/time-out, download the fittest of M copies of the best with "
                         "new motions in the failed leg's most visited obstacle states (0: off)")
+    p.add_argument("--escape-credit", action=argparse.BooleanOptionalAction, default=d.escape_credit,
+                   help="at every download prefer (no worse on model crashes/loops) the individual "
+                        "whose motions were least often in failed legs (lifetime blame)")
     p.add_argument("--relax-window", action=argparse.BooleanOptionalAction, default=d.relax_window,
                    help="--loop-relax also doubles --loop-window")
     p.add_argument("--escape-memory", action=argparse.BooleanOptionalAction, default=d.escape_memory,

@@ -61,7 +61,9 @@ def test_other_seed_gives_another_lifetime():
                                       "loop_still_mm": 40.0, "loop_patience": 2},
                                      {"loop_repeats": 4, "loop_reentries": 6, "loop_relax": 1,
                                       "relax_window": True, "escape_spread": "target", "loop_window": 15, "escape_rewrite": 5,
-                                      "loop_radius_mm": 80.0}])
+                                      "loop_radius_mm": 80.0},
+                                     {"loop_repeats": 4, "loop_reentries": 6, "loop_window": 15,
+                                      "escape_credit": True}])
 def test_resume_equals_uninterrupted(tmp_path, options):
     config = OnlineConfig(seed=5, **{**SMALL, **options})
     whole = make_run(config, out=tmp_path / "whole").run()

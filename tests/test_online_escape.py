@@ -171,3 +171,42 @@ def test_rewrite_escape_downloads_new_untried_motions_in_the_loop_states():
     # Nothing no worse on the model than the fittest: the plain escape's choice is kept.
     strict = EvalCounts(crashes=zeros.copy(), loops=zeros - 1, distance=zeros.copy())
     assert np.array_equal(run._rewrite_escape(fittest, strict, 0, pop[5], {}), pop[5])
+
+
+def test_blame_table_counts_failed_legs_minus_legs_that_reached_the_target():
+    run = make_run(OnlineConfig(seed=2, **{**SMALL, "escape_credit": True}))
+    run.pre_states = [1, 1, 2, 1, 2, 3, 1, 1]
+    run.motions = [0, 0, 5, 0, 6, 0, 0, 3]
+    run.interactions = 8
+    # steps 0-2: a leg stopped as a loop; 3-4: a crash phase; 5-7: a leg that reached the target
+    run.phases = [{"reason": "loop", "targets": 0, "leg_start": 0, "interactions": 3},
+                  {"reason": "crash", "targets": 0, "interactions": 5}]
+    run.target_log = [{"target": 1, "interactions": 8}]
+    blame = run._blame_table()
+    assert blame[1, 0] == 2 - 1 and blame[2, 5] == 1 and blame[2, 6] == 0  # crash legs: neutral
+    assert blame[3, 0] == -1 and blame[1, 3] == -1
+    assert blame.sum() == 3 - 3
+    assert run._blame_table({"leg_start": 3, "interactions": 5})[2, 6] == 1
+
+
+def test_credit_choice_prefers_the_least_blamed_individual_no_worse_on_the_model():
+    run = make_run(OnlineConfig(seed=2, **{**SMALL, "escape_credit": True}))
+    pop = random_population(np.random.default_rng(4), 30)
+    tables = truth_tables(pop, reflex=True)
+    for board in (run.evaluator, run.mirror):
+        board.observe(1, 0, 2, False)
+        board.observe(2, 0, 1, False)
+    # individual 0 (the fittest) looped through its motions in states 1 and 2
+    run.pre_states, run.motions = [1, 2] * 4, [int(tables[0, 1]), int(tables[0, 2])] * 4
+    run.interactions = 8
+    run.phases = [{"reason": "loop", "targets": 0, "leg_start": 0, "interactions": 8}]
+    zeros = np.zeros(30, dtype=np.int64)
+    counts = EvalCounts(crashes=zeros.copy(), loops=zeros.copy(), distance=zeros.copy())
+    fitness = np.linspace(1.0, 0.5, 30)
+    record: dict = {}
+    chosen = run._credit_choice(pop, counts, fitness, 0, record)
+    penalty = 4 * (tables[:, 1] == tables[0, 1]) + 4 * (tables[:, 2] == tables[0, 2])
+    assert chosen == int(np.flatnonzero(penalty == penalty.min())[0])
+    assert record["blame"] == [8, int(penalty.min())]
+    counts.loops[chosen] = 1  # worse on the model's loops: excluded
+    assert run._credit_choice(pop, counts, fitness, 0, {}) != chosen
