@@ -150,7 +150,8 @@ def run_cocotb(
             test_module=test_module,
             hdl_toplevel=toplevel,
             build_dir=build_dir,
-            test_dir=test_dir,
+            # Verilator writes its VCD (WAVES=1) into the working directory: make that the build's
+            test_dir=build_dir if simulator == "verilator" else test_dir,
             testcase=testcase,
             extra_env=env,
             waves=waves,
