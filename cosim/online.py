@@ -10,9 +10,12 @@ Structure (an alternation of execution and learning phases, in sequence as in th
   per step, ``a = controller.motion(s)``, one ``World.step(a)`` (one *interaction*), and
   ``evaluator.observe(s, a, s2, crashed)`` updates the world model on the evaluator board. Reaching
   the target relocates the robot to the next of the 64 poses. The phase ends on a *failure*: a
-  crash, a leg time-out (``max_leg_steps`` steps on one leg since the phase began), or, when
-  enabled, a real-world loop (``loop_window``: no new closest approach to the ball for that many
-  steps; see docs/online.md).
+  crash, a leg time-out (``max_leg_steps`` steps on one leg since the phase began), or a
+  real-world loop: no new closest approach to the ball for ``loop_window`` steps, or (since
+  round 3, docs/online.md) an oscillation in place: ``loop_repeats`` repetitions of one short
+  cycle of (state, motion) pairs, or ``loop_reentries`` entries into one obstacle state, each
+  counted only while the robot is back within ``loop_radius_mm`` of where it was, by odometry
+  (the commanded motions dead-reckoned), without a new closest approach meanwhile.
 - **Learning phase.** ``generations_per_phase`` generations of the GA (population 500, tournament
   20, elitism; the GA is kept across phases), each population evaluated by
   ``evaluator.evaluate(pop)`` and scored with the normative fitness (``ga.evaluator.fitness``); the
@@ -92,10 +95,10 @@ class OnlineConfig:
     loop_window: int = 100  # > 0: stop when no new closest approach to the ball for this many steps
     # > 0: stop when the robot has entered one obstacle state (from another state) this many times
     # since its last new closest approach to the ball (an oscillation, e.g. F/F -> F/L -> F/F)
-    loop_reentries: int = 0
+    loop_reentries: int = 4  # default since round 3 (docs/online.md); 0: off
     # > 0: stop when the last (state, motion) pairs are this many repetitions of one cycle of
     # 2..6 pairs, without a new closest approach meanwhile (a periodic oscillation)
-    loop_repeats: int = 0
+    loop_repeats: int = 4  # default since round 3 (docs/online.md); 0: off
     # the recent (state, motion) window that a time-out/loop is blamed on starts empty at each
     # execution phase (False: it also holds the previous phases' pairs, motions the controller
     # just downloaded may no longer choose)
@@ -120,7 +123,7 @@ class OnlineConfig:
     # into a state only among the earlier entries (since the last new closest approach) within
     # this many mm, loop_repeats fires only if the repeated cycles moved the robot less than
     # this; a wall followed or a detour is not a loop. 0: off
-    loop_radius_mm: float = 0.0
+    loop_radius_mm: float = 80.0  # default since round 3 (docs/online.md)
     relax_window: bool = False
     # learning phase
     targeted: int = 0  # state-targeted mutants of the best written into the population per phase

@@ -32,7 +32,8 @@ def test_loop_relax_doubles_the_detectors_per_k_stops_at_one_target():
     run.targets = 1  # a new target: the stops of the earlier one no longer count
     assert run.loop_limits() == (50, 6, 4)
     wide = make_run(OnlineConfig(seed=1, **{**SMALL, "loop_window": 50, "loop_relax": 3,
-                                            "relax_window": True}))
+                                            "relax_window": True, "loop_reentries": 0,
+                                            "loop_repeats": 0}))
     wide.phases = [_loop(0)] * 7
     assert wide.loop_limits() == (200, 0, 0)
     patient = make_run(OnlineConfig(seed=1, **{**SMALL, "loop_reentries": 6, "loop_patience": 2}))
@@ -122,7 +123,7 @@ def test_loop_radius_counts_only_reentries_at_the_same_place(motions, expected):
     for k in range(6):
         run._advance(motions[k % 2])
     assert run.entries[1] == expected
-    plain = make_run(OnlineConfig(seed=1, **{**SMALL, "loop_reentries": 6}))
+    plain = make_run(OnlineConfig(seed=1, **{**SMALL, "loop_reentries": 6, "loop_radius_mm": 0.0}))
     _scripted(plain, [2, 1] * 3)
     for k in range(6):
         plain._advance(motions[k % 2])
