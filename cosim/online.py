@@ -55,6 +55,7 @@ from ga.evolution import GAConfig, GeneticAlgorithm
 from ga.genome import hex_from_rows, rows_from_hex
 from ga.motions import MOTION_ROTATION_DEG, MOTION_TRANSLATION_MM, OBSTACLE_MASK
 from ga.online_operators import diversity, targeted_mutants
+from ga.truth_table import truth_tables
 from ga.world_model import WorldModel
 from sim_world.world import DEFAULT_NOISE, Fault, World
 
@@ -154,6 +155,12 @@ class OnlineConfig:
     # a time-out or loop minus its steps in legs that reached the target, over the lifetime (a
     # loop the model cannot hold is remembered here instead; docs/online.md, round 3)
     escape_credit: bool = False
+    # NOT the normative fitness (SPEC section 7), an option: a controller loses loop_penalty / N of
+    # fitness for each distinct obstacle (state, motion) blamed for a loop or time-out on the
+    # current leg (since the last target) that it would choose again. The model cannot hold those
+    # loops (docs/online.md), so without it the GA's selection soon brings the looping motion
+    # back; the escape alone only changes one download. 0: off (the SPEC). Measured: docs/online.md.
+    loop_penalty: float = 0.0
     # NOT the normative model update (SPEC section 7), an option: after a time-out or loop, the
     # blamed (state, motion) is written to the world model so that the fitness sees the real-world
     # loop: "self" = as a transition back to the same state (the fitness counts it as a loop; the
@@ -466,10 +473,14 @@ class OnlineRun:
                 self.ga.replace(base + i, rows)
             record["targeted"] = len(mutants)
         n_states = self.mirror.n_states
+        penalised = self._leg_blames() if cfg.loop_penalty else ()
         for _ in range(cfg.generations_per_phase):
             pop = self.ga.ask()
             counts = self.evaluator.evaluate(pop)
-            self.ga.tell(model_fitness(counts, n_states))
+            fitness = model_fitness(counts, n_states)
+            if penalised:
+                fitness = fitness - cfg.loop_penalty * _repeats(pop, penalised, cfg.reflex) / n_states
+            self.ga.tell(fitness)
             self.generations += 1
             self.genetic_operations += pop.shape[0]
         last = self.ga.last_fitness
@@ -506,6 +517,13 @@ class OnlineRun:
         })
         record.update(diversity(pop, self.mirror.states))
         self.phases.append(record)
+
+    def _leg_blames(self) -> list[tuple[int, int]]:
+        """Option ``loop_penalty``: the distinct obstacle (state, motion) pairs blamed for the
+        loops and time-outs of the earlier phases of the current leg (since the last target)."""
+        return sorted({(p["state"], p["motion"]) for p in self.phases
+                       if p["reason"] in ("timeout", "loop") and p["state"] & OBSTACLE_MASK
+                       and p["targets"] == self.targets})
 
     def _spread_escape(self, pop, counts, fitness, i_best: int, record: dict) -> int:
         """Option ``escape_spread``: among the individuals no worse than the fittest on the model's
@@ -751,9 +769,13 @@ class OnlineRun:
 
 
 def _motions_in(pop: np.ndarray, state: int, reflex: bool) -> np.ndarray:
-    from ga.truth_table import truth_tables
-
     return truth_tables(pop, reflex=reflex)[:, state]
+
+
+def _repeats(pop: np.ndarray, pairs, reflex: bool) -> np.ndarray:
+    """How many of the (state, motion) ``pairs`` each controller of ``pop`` would choose."""
+    tables = truth_tables(pop, reflex=reflex)
+    return sum((tables[:, s] == a).astype(np.int64) for s, a in pairs)
 
 
 def adaptation_figures(target_log: list[dict], after: int, blinded_at: int, window: int = 8) -> dict:
@@ -890,7 +912,7 @@ def config_from_args(args) -> OnlineConfig:
         escape=args.escape, escape_memory=args.escape_memory,
         blame_phase_only=args.blame_phase_only, loop_key=args.loop_key,
         loop_still_mm=args.loop_still_mm, loop_patience=args.loop_patience,
-        escape_rewrite=args.escape_rewrite, escape_credit=args.escape_credit, loop_relax=args.loop_relax, loop_radius_mm=args.loop_radius_mm, relax_window=args.relax_window, escape_spread=args.escape_spread,
+        escape_rewrite=args.escape_rewrite, escape_credit=args.escape_credit, loop_penalty=args.loop_penalty, loop_relax=args.loop_relax, loop_radius_mm=args.loop_radius_mm, relax_window=args.relax_window, escape_spread=args.escape_spread,
         mark_loops=args.mark_loops, model_update=args.model_update,
         blind_bit=args.blind_bit, blind_after_target=args.blind_after_target,
     )
@@ -946,6 +968,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--escape-credit", action=argparse.BooleanOptionalAction, default=d.escape_credit,
                    help="at every download prefer (no worse on model crashes/loops) the individual "
                         "whose motions were least often in failed legs (lifetime blame)")
+    p.add_argument("--loop-penalty", type=float, default=d.loop_penalty, metavar="W",
+                   help="NOT the SPEC fitness: subtract W/N for each loop-blamed (state, motion) of "
+                        "the current leg that a controller would choose again (0: off)")
     p.add_argument("--relax-window", action=argparse.BooleanOptionalAction, default=d.relax_window,
                    help="--loop-relax also doubles --loop-window")
     p.add_argument("--escape-memory", action=argparse.BooleanOptionalAction, default=d.escape_memory,

@@ -211,3 +211,43 @@ def test_credit_choice_prefers_the_least_blamed_individual_no_worse_on_the_model
     assert record["blame"] == [8, int(penalty.min())]
     counts.loops[chosen] = 1  # worse on the model's loops: excluded
     assert run._credit_choice(pop, counts, fitness, 0, {}) != chosen
+
+
+def test_loop_penalty_lowers_the_fitness_of_controllers_that_repeat_a_blamed_pair():
+    """Option loop_penalty (NOT the SPEC fitness): W / N less per blamed pair of the current leg
+    that a controller would choose again; pairs of earlier legs, crashes and free-space states
+    are not blamed."""
+    from cosim import online
+
+    run = make_run(OnlineConfig(seed=2, **{**SMALL, "loop_penalty": 0.4}))
+    state = 1  # F/F: an obstacle state, the controller decides
+    run.targets = 3
+    run.phases = [
+        {"reason": "loop", "targets": 3, "state": state, "motion": 0},
+        {"reason": "timeout", "targets": 3, "state": 72, "motion": 6},
+        {"reason": "loop", "targets": 3, "state": state, "motion": 0},  # the same pair: counted once
+        {"reason": "loop", "targets": 2, "state": 4, "motion": 1},  # an earlier leg
+        {"reason": "crash", "targets": 3, "state": 2, "motion": 5},
+        {"reason": "loop", "targets": 3, "state": 64, "motion": 0},  # free space: the reflex decides
+    ]
+    assert run._leg_blames() == [(1, 0), (72, 6)]
+    pop = random_population(np.random.default_rng(0), 200)
+    tables = truth_tables(pop, reflex=True)
+    repeats = online._repeats(pop, run._leg_blames(), True)
+    assert np.array_equal(repeats, (tables[:, 1] == 0).astype(int) + (tables[:, 72] == 6))
+    assert repeats.max() == 2 and repeats.min() == 0
+
+    told = []
+    tell = run.ga.tell
+    run.ga.tell = lambda fitness: (told.append(np.array(fitness)), tell(fitness))[1]
+    evaluate = run.evaluator.evaluate
+    seen = []
+    run.evaluator.evaluate = lambda p: (seen.append(p.copy()), evaluate(p))[1]
+    run.evaluator.observe(1, 0, 1, False)
+    run.mirror.observe(1, 0, 1, False)
+    run._learn("loop", 5, state, 0)
+    n = run.mirror.n_states
+    for p, fitness in zip(seen, told):
+        plain = online.model_fitness(evaluate(p), n)
+        assert np.allclose(plain - fitness, 0.4 * online._repeats(p, [(1, 0), (72, 6)], True) / n)
+        assert (plain != fitness).any()
