@@ -1,7 +1,7 @@
 """The ``cocotb`` board backend: the on-line experiment runs inside a cocotb test, on the generated
-Verilog of both EHW boards in Icarus Verilog.
+Verilog of both EHW boards in Icarus Verilog or Verilator (``EHW_SIM``, see ``cosim.cocotb_run``).
 
-    python -m cosim.online --backend cocotb --seed 1          (make sim BACKEND=cocotb [WAVES=1])
+    EHW_SIM=verilator python -m cosim.online --backend cocotb --seed 1   (make sim BACKEND=cocotb [SIM=icarus] [WAVES=1])
 
 The process that is started (``python -m cosim.online``) only launches the simulation
 (:func:`run_online_cocotb`): it writes ``system_top.v`` (``hdl.system_top.SystemTop``: controller
