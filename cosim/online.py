@@ -921,7 +921,10 @@ def config_from_args(args) -> OnlineConfig:
 def build_parser() -> argparse.ArgumentParser:
     d = OnlineConfig()
     p = argparse.ArgumentParser(prog="python -m cosim.online", description=__doc__.split("\n")[0])
-    p.add_argument("--backend", choices=BACKENDS, default="reference")
+    p.add_argument("--backend", choices=BACKENDS, default="reference",
+                   help="the boards: NumPy reference, Amaranth's simulator, or cocotb on the Verilog "
+                        "(simulator: EHW_SIM=icarus|verilator, default icarus; HDL_SAMPLE: "
+                        "EHW_HDL_SAMPLE=k evaluates k controllers a population on the HDL, 0 = all)")
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--arena", default=d.arena)
     p.add_argument("--out", type=Path, default=Path("results/model_based"))
