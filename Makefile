@@ -20,7 +20,7 @@ SEEDS  ?= 5
 JOBS   ?= 2
 ARGS   ?=
 
-.PHONY: all test sim offline compare verilog bench arena baseline iverilog hdl-tools venv clean distclean help
+.PHONY: all test sim offline compare verilog bench arena baseline hdl-tools venv clean distclean help
 
 all: test
 
@@ -62,8 +62,6 @@ hdl-tools:
 	    exit 1; \
 	  fi; \
 	fi
-
-iverilog: hdl-tools
 
 test: $(STAMP) hdl-tools
 	$(PY) -m pytest -n $(JOBS) $(ARGS)
