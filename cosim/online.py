@@ -125,6 +125,18 @@ class OnlineConfig:
     # this many mm, loop_repeats fires only if the repeated cycles moved the robot less than
     # this; a wall followed or a detour is not a loop. 0: off
     loop_radius_mm: float = 80.0  # default since round 3 (docs/online.md)
+    # > 0: stop when the robot has gone this many times round one simple cycle of 2..8 states that
+    # ends in the state it is in now (the last K p pairs repeat the p pairs that led from the
+    # current state back to it), within loop_radius_mm by odometry and without a new closest
+    # approach. Its transitions are then the world model's most recent entries, so the model
+    # holds the loop the controller just ran (docs/online.md, round 5); 0: off
+    loop_cycles: int = 0
+    # the download among the individuals that tie for the best fitness (with escape: the best of
+    # those that avoid the blamed motion): "first" = the first of them in the population;
+    # "closest" = the one whose motions differ from the running controller's in the states the
+    # robot has visited least often (the sum of the visits of every changed state): behaviour
+    # the model cannot tell apart stays what worked in the world (docs/online.md, round 5)
+    download: str = "first"
     relax_window: bool = False
     # learning phase
     targeted: int = 0  # state-targeted mutants of the best written into the population per phase
@@ -187,6 +199,8 @@ class OnlineConfig:
             raise ValueError(f"generations_per_phase must be at least 1, got {self.generations_per_phase!r}")
         if self.escape_spread not in ("off", "leg", "target"):
             raise ValueError(f"escape_spread must be 'off', 'leg' or 'target', got {self.escape_spread!r}")
+        if self.download not in ("first", "closest"):
+            raise ValueError(f"download must be 'first' or 'closest', got {self.download!r}")
         if self.loop_key not in ("pair", "motion"):
             raise ValueError(f"loop_key must be 'pair' or 'motion', got {self.loop_key!r}")
         if (self.blind_bit is None) != (self.blind_after_target is None):
@@ -246,6 +260,7 @@ class OnlineRun:
         self.curve_states: list[int] = []  # |S| after each interaction
         self.curve_transitions: list[int] = []
         self.known_crash_repeats = 0  # motions chosen in a state where the model knows they crash
+        self.visits = np.zeros(256, dtype=np.int64)  # steps taken in each state (download "closest")
         self.window = deque(maxlen=max(config.loop_window, 64))  # recent (state, motion)
         self.dists = deque(maxlen=self.window.maxlen)  # the ball distance after each of them
         self.odometry = [0.0, 0.0, 0.0]  # dead-reckoned (x, y, heading) from the commanded motions
@@ -289,6 +304,7 @@ class OnlineRun:
         self.transitions.add((s, motion, step.state, step.crashed))
         self.motions.append(motion)
         self.pre_states.append(s)
+        self.visits[s] += 1
         self.state_log.append(step.state)
         self.interactions += 1
         self.leg_steps += 1
@@ -399,6 +415,9 @@ class OnlineRun:
             if repeats and self._periodic(repeats):
                 self.detector = "repeats"
                 return "loop", steps, *self._blame()
+            if cfg.loop_cycles and self._cycled(cfg.loop_cycles):
+                self.detector = "cycles"
+                return "loop", steps, *self._blame()
             if cfg.max_interactions and self.interactions >= cfg.max_interactions:
                 return "budget", steps, s, a
 
@@ -437,6 +456,32 @@ class OnlineRun:
                 d = list(self.dists)[-n:]
                 if max(abs(d[i] - d[i - p]) for i in range(p, n)) <= self.config.loop_still_mm:
                     return True
+        return False
+
+    def _cycled(self, rounds: int) -> bool:
+        """The robot is back in its current state after a simple cycle of p pairs (2 <= p <= 8:
+        the states in it distinct, one with an obstacle bit), gone round ``rounds`` times in a row
+        since its last new closest approach to the ball, and by odometry within
+        ``loop_radius_mm`` (if set) of where the first round began."""
+        w, now = self.window, self.state
+        for p in range(2, 9):
+            n = rounds * p
+            if n > len(w) or n > self.since_closer:
+                break
+            if w[-p][0] != now:
+                continue
+            cycle = [w[i] for i in range(-p, 0)]
+            states = [s for s, _ in cycle]
+            if len(set(states)) < p or not any(s & OBSTACLE_MASK for s in states):
+                continue
+            if any(w[-p * r + i] != cycle[i] for r in range(2, rounds + 1) for i in range(p)):
+                continue
+            if self.config.loop_radius_mm:
+                (x0, y0), (x1, y1) = self.odo_hist[-n - 1] if n < len(self.odo_hist) else self.odo_hist[0], \
+                    self.odo_hist[-1]
+                if math.hypot(x1 - x0, y1 - y0) > self.config.loop_radius_mm:
+                    continue
+            return True
         return False
 
     def _blame(self) -> tuple[int, int]:
@@ -485,6 +530,7 @@ class OnlineRun:
             self.genetic_operations += pop.shape[0]
         last = self.ga.last_fitness
         i_best = int(np.argmax(last))
+        eligible = None  # the individuals the escape allows (None: all)
         if cfg.escape and reason in ("timeout", "loop") and state & OBSTACLE_MASK:
             motions = _motions_in(pop, state, cfg.reflex)
             if cfg.escape_spread != "off":
@@ -494,9 +540,13 @@ class OnlineRun:
                 differs = penalty == penalty.min()
             else:
                 differs = motions != motion
-            if cfg.escape_spread == "off" and differs.any() and not differs[i_best]:
-                i_best = int(np.flatnonzero(differs)[np.argmax(last[differs])])
-                record["escaped"] = True
+            if cfg.escape_spread == "off" and differs.any():
+                eligible = differs
+                if not differs[i_best]:
+                    i_best = int(np.flatnonzero(differs)[np.argmax(last[differs])])
+                    record["escaped"] = True
+        if cfg.download == "closest" and self.best_rows is not None and cfg.escape_spread == "off":
+            i_best = self._closest(pop, last, i_best, eligible, record)
         best = pop[i_best]
         if cfg.escape_rewrite and reason in ("timeout", "loop") and state & OBSTACLE_MASK:
             best = self._rewrite_escape(pop[int(np.argmax(last))], counts, int(np.argmax(last)), best, record)
@@ -517,6 +567,22 @@ class OnlineRun:
         })
         record.update(diversity(pop, self.mirror.states))
         self.phases.append(record)
+
+    def _closest(self, pop, fitness, i_best: int, eligible, record: dict) -> int:
+        """Among the individuals tied with ``i_best`` (and ``eligible``, if given), the one whose
+        motions differ from the running controller's in the least visited states (download
+        "closest"); ties: the first."""
+        ties = fitness == fitness[i_best]
+        if eligible is not None:
+            ties &= eligible
+        index = np.flatnonzero(ties)
+        if len(index) == 1:
+            return i_best
+        current = truth_tables(self.best_rows[None], reflex=self.config.reflex)[0]
+        tables = truth_tables(pop[index], reflex=self.config.reflex)
+        cost = ((tables != current) * self.visits).sum(axis=1)
+        record["ties"] = len(index)
+        return int(index[np.argmin(cost)])
 
     def _leg_blames(self) -> list[tuple[int, int]]:
         """Option ``loop_penalty``: the distinct obstacle (state, motion) pairs blamed for the
@@ -914,6 +980,7 @@ def config_from_args(args) -> OnlineConfig:
         loop_still_mm=args.loop_still_mm, loop_patience=args.loop_patience,
         escape_rewrite=args.escape_rewrite, escape_credit=args.escape_credit, loop_penalty=args.loop_penalty, loop_relax=args.loop_relax, loop_radius_mm=args.loop_radius_mm, relax_window=args.relax_window, escape_spread=args.escape_spread,
         mark_loops=args.mark_loops, model_update=args.model_update,
+        loop_cycles=args.loop_cycles, download=args.download,
         blind_bit=args.blind_bit, blind_after_target=args.blind_after_target,
     )
 
@@ -965,6 +1032,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--loop-radius-mm", type=float, default=d.loop_radius_mm,
                    help="loop_reentries/loop_repeats fire only if the robot is back within this "
                         "distance by odometry (commanded motions; 0: off)")
+    p.add_argument("--loop-cycles", type=int, default=d.loop_cycles, metavar="K",
+                   help="stop a leg once the robot has gone K times round one simple cycle of "
+                        "states back to where it is, within --loop-radius-mm (0: off)")
+    p.add_argument("--download", choices=("first", "closest"), default=d.download,
+                   help="which of the individuals tied for the best fitness is downloaded: the "
+                        "first, or the one that changes the motion of the least visited states")
     p.add_argument("--escape-rewrite", type=int, default=d.escape_rewrite, metavar="M",
                    help="after a loop/time-out, download the fittest of M copies of the best with "
                         "new motions in the failed leg's most visited obstacle states (0: off)")

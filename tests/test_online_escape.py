@@ -251,3 +251,40 @@ def test_loop_penalty_lowers_the_fitness_of_controllers_that_repeat_a_blamed_pai
         plain = online.model_fitness(evaluate(p), n)
         assert np.allclose(plain - fitness, 0.4 * online._repeats(p, [(1, 0), (72, 6)], True) / n)
         assert (plain != fitness).any()
+
+
+@pytest.mark.parametrize("rounds, motions, fires_at", [(1, (2, 3), 3), (2, (2, 3), 5), (1, (0, 0), None)])
+def test_loop_cycles_stops_once_the_robot_went_round_a_simple_cycle(rounds, motions, fires_at):
+    """States 1 -> 2 -> 1 -> ... (the ball never closer): turning in place closes the cycle after
+    ``rounds`` rounds (the first step only sets the closest approach); moving on 50 mm a step is
+    no loop by odometry."""
+    run = make_run(OnlineConfig(seed=1, **{**SMALL, "loop_cycles": rounds, "loop_radius_mm": 60.0}))
+    run.state = 1
+    _scripted(run, [2, 1] * 5)
+    fired = None
+    for k in range(10):
+        run._advance(motions[k % 2])
+        if fired is None and run._cycled(rounds):
+            fired = k + 1
+    assert fired == fires_at
+
+
+def test_closest_download_keeps_the_behaviour_of_the_visited_states():
+    """Among individuals tied for the best fitness, "closest" picks the one that changes the
+    running controller's motion in the least visited states; the escape's restriction holds."""
+    run = make_run(OnlineConfig(seed=1, **{**SMALL, "download": "closest"}))
+    rng = np.random.default_rng(3)
+    pop = random_population(rng, 8)
+    run.best_rows = pop[5].copy()
+    run.visits[:] = 1
+    fitness = np.array([0.1, 0.2, 0.9, 0.3, 0.2, 0.9, 0.5, 0.9])
+    record = {}
+    assert run._closest(pop, fitness, 2, None, record) == 5  # the running controller itself
+    assert record["ties"] == 3
+    eligible = np.ones(8, dtype=bool)
+    eligible[5] = False
+    current = truth_tables(pop[5][None])[0]
+    changed = (truth_tables(pop[[2, 7]]) != current).sum(axis=1)
+    assert run._closest(pop, fitness, 2, eligible, {}) == (2, 7)[int(np.argmin(changed))]
+    with pytest.raises(ValueError, match="download"):
+        OnlineConfig(download="best")
