@@ -67,12 +67,12 @@ class AmaranthSystem:
     """One SystemTop in one Simulator, kept alive across calls; ``call(job)`` runs a coroutine
     function ``job(host)`` in the simulation and returns its result."""
 
-    def __init__(self, reflex: bool = True, vcd: str | None = None):
+    def __init__(self, reflex: bool = True, vcd: str | None = None, distance_rule: str = "covered"):
         from amaranth.sim import Simulator
 
         from hdl.system_top import SystemHost, SystemTop
 
-        self.dut = SystemTop()
+        self.dut = SystemTop(distance_rule=distance_rule)
         self.pins = AmaranthPins(self.dut)
         self.host = SystemHost(self.pins)
         self.sim = Simulator(self.dut)
@@ -261,13 +261,13 @@ class HDLEvaluatorBoard:
     """
 
     def __init__(self, system, reflex: bool = True, check: bool = True, log: BoardLog | None = None,
-                 sample: int | None = None):
+                 sample: int | None = None, distance_rule: str = "covered"):
         self.system = system
         self.host = system.host
         self.sample = sample_default() if sample is None else int(sample)
         if self.sample and not check:
             raise ValueError(f"sampling ({self.sample!r} controllers per evaluation) needs check=True")
-        self.reference = ReferenceEvaluatorBoard(reflex=reflex) if check else None
+        self.reference = ReferenceEvaluatorBoard(reflex=reflex, distance_rule=distance_rule) if check else None
         self.log = log if log is not None else BoardLog()
         self.reference_time_s = 0.0  # CPU time of the reference evaluations (check=True)
         self.evaluations = 0  # controllers evaluated
@@ -326,7 +326,7 @@ class HDLEvaluatorBoard:
 
 
 def make_amaranth_boards(reflex: bool = True, check: bool = True, vcd: str | None = None,
-                         sample: int | None = None):
+                         sample: int | None = None, distance_rule: str = "covered"):
     """A fresh (controller board, evaluator board) pair sharing one simulated SystemTop
     (``sample``: see :class:`HDLEvaluatorBoard`; default ``EHW_HDL_SAMPLE`` or 0, all).
     ``vcd``: dump the simulation there (``WAVES=1``: build/sim/amaranth_system_top.vcd)."""
@@ -335,14 +335,14 @@ def make_amaranth_boards(reflex: bool = True, check: bool = True, vcd: str | Non
 
         SIM_BUILD.mkdir(parents=True, exist_ok=True)
         vcd = str(SIM_BUILD / "amaranth_system_top.vcd")
-    system = AmaranthSystem(reflex=reflex, vcd=vcd)
+    system = AmaranthSystem(reflex=reflex, vcd=vcd, distance_rule=distance_rule)
     if vcd:
         import atexit
 
         atexit.register(system.close)  # the VCD is complete when the process ends
     log = BoardLog()
     return (HDLControllerBoard(system, reflex, check, log=log),
-            HDLEvaluatorBoard(system, reflex, check, log=log, sample=sample))
+            HDLEvaluatorBoard(system, reflex, check, log=log, sample=sample, distance_rule=distance_rule))
 
 
 register_backend("amaranth", make_amaranth_boards)

@@ -103,11 +103,14 @@ class ReferenceControllerBoard:
 class ReferenceEvaluatorBoard:
     """The evaluator board as ``ga.world_model.WorldModel`` plus ``ga.evaluator.evaluate_population``."""
 
-    def __init__(self, reflex: bool = True):
+    def __init__(self, reflex: bool = True, distance_rule: str = "covered"):
+        from ga.motions import motion_distances
         from ga.world_model import WorldModel
 
+        motion_distances(distance_rule)  # refuses an unknown rule now, not at the first evaluation
         self.cycles = 0
         self.reflex = bool(reflex)
+        self.distance_rule = distance_rule
         self.model = WorldModel()
         self.time_s = 0.0  # CPU time spent in evaluate (beside the EHW's hardware time)
 
@@ -118,7 +121,8 @@ class ReferenceEvaluatorBoard:
         from ga.evaluator import evaluate_population
 
         t0 = time.process_time()  # CPU time: steady on a shared machine
-        result = evaluate_population(population, self.model, reflex=self.reflex)
+        result = evaluate_population(population, self.model, reflex=self.reflex,
+                                     distance_rule=self.distance_rule)
         self.time_s += time.process_time() - t0
         return EvalCounts(
             crashes=np.asarray(result.crashes),
@@ -143,10 +147,10 @@ def register_backend(name: str, factory) -> None:
     _FACTORIES[name] = factory
 
 
-def _reference_factory(reflex: bool = True, **options):
+def _reference_factory(reflex: bool = True, distance_rule: str = "covered", **options):
     if options:
-        raise TypeError(f"the reference backend takes no options, got {sorted(options)!r}")
-    return ReferenceControllerBoard(reflex=reflex), ReferenceEvaluatorBoard(reflex=reflex)
+        raise TypeError(f"the reference backend takes no options but distance_rule, got {sorted(options)!r}")
+    return ReferenceControllerBoard(reflex=reflex), ReferenceEvaluatorBoard(reflex=reflex, distance_rule=distance_rule)
 
 
 register_backend("reference", _reference_factory)

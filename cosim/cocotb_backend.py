@@ -112,7 +112,7 @@ class CocotbSystem:
         return resume(job)(*args)
 
 
-def make_cocotb_boards(reflex: bool = True, check: bool = True):
+def make_cocotb_boards(reflex: bool = True, check: bool = True, distance_rule: str = "covered"):
     """The board pair on the running test's system top (inside the simulator only)."""
     if _active_system is None:
         raise RuntimeError(
@@ -122,7 +122,7 @@ def make_cocotb_boards(reflex: bool = True, check: bool = True):
     _active_system.call(_active_system.host.reflex, bool(reflex))
     log = BoardLog()
     return (HDLControllerBoard(_active_system, reflex, check, log=log),
-            HDLEvaluatorBoard(_active_system, reflex, check, log=log))
+            HDLEvaluatorBoard(_active_system, reflex, check, log=log, distance_rule=distance_rule))
 
 
 register_backend("cocotb", make_cocotb_boards)
@@ -186,7 +186,8 @@ def icarus_time_zero_fix(verilog: str) -> str:
     return _TRIGGER.sub(lambda mt: f"{mt.group(0)}\n{mt.group(1)}initial #1 {mt.group(2)}= 1;", verilog)
 
 
-def write_system_verilog(out_dir: Path | str | None = None, p_max: int | None = None) -> Path:
+def write_system_verilog(out_dir: Path | str | None = None, p_max: int | None = None,
+                         distance_rule: str = "covered") -> Path:
     """``system_top.v`` for Icarus (regenerated each time: a few seconds); ``p_max`` other than
     the default gives a smaller population RAM (tests: set ``EHW_SYSTEM_P_MAX`` to match)."""
     from amaranth.back import verilog
@@ -197,7 +198,7 @@ def write_system_verilog(out_dir: Path | str | None = None, p_max: int | None = 
     out = Path(out_dir) if out_dir else SIM_BUILD / "verilog"
     out.mkdir(parents=True, exist_ok=True)
     path = out / f"{TOPLEVEL}.v"
-    top = SystemTop() if p_max is None else SystemTop(p_max=p_max)
+    top = SystemTop(distance_rule=distance_rule) if p_max is None else SystemTop(p_max=p_max, distance_rule=distance_rule)
     path.write_text(icarus_time_zero_fix(verilog.convert(top, name=TOPLEVEL, emit_src=False)))
     return path
 
@@ -217,7 +218,11 @@ def run_online_cocotb(config, out: Path | str, *, resume: bool = False, plots: b
     out.mkdir(parents=True, exist_ok=True)
     summary_path = out / "summary.json"
     summary_path.unlink(missing_ok=True)
-    source = write_system_verilog(SIM_BUILD / f"{build_name}_verilog")  # one per build: runs may overlap
+    rule = config.distance_rule
+    if rule != "covered" and build_name == TOPLEVEL:
+        build_name = f"{TOPLEVEL}_{rule}"  # other Verilog: its own build
+    # one folder per build: runs may overlap
+    source = write_system_verilog(SIM_BUILD / f"{build_name}_verilog", distance_rule=rule)
     options = {"out": str(out), "resume": resume, "plots": plots, "progress": progress}
     env = {CONFIG_ENV: json.dumps(config.to_dict()), OPTIONS_ENV: json.dumps(options),
            "EHW_CLOCK_HZ": str(clock_hz if clock_hz is not None else clock_hz_default())}

@@ -147,6 +147,9 @@ def markdown(report: dict) -> str:
         p_off = PAPER["offline"].get(key, 64 if key == "targets_reached" else "")
         lines.append(f"| {key.replace('_', ' ')} | " + " | ".join(cells) +
                      f" | {p_on:,} | {p_off:,} |")
+    if report.get("online_distance_rule", "covered") != "covered":
+        lines += ["", f"On-line runs with the option dist[a] = {report['online_distance_rule']} (NOT the "
+                  "SPEC's fitness; docs/online.md, round 5)."]
     if "interaction_ratio" in report:
         r = report["interaction_ratio"]
         lines += ["", f"Interaction ratio off-line / on-line: **{r['of_medians']:.0f}** (ratio of the "
@@ -183,6 +186,10 @@ def main(argv=None) -> int:
     p.add_argument("--methods", default="online,offline,baseline")
     p.add_argument("--generations-cap", type=int, default=None, help="off-line generation cap")
     p.add_argument("--resume", action="store_true", help="continue interrupted runs from their checkpoints")
+    p.add_argument("--first-seed", type=int, default=1, help="the seeds are first..first+N-1 (default 1)")
+    p.add_argument("--distance", choices=("covered", "forward"), default="covered",
+                   help="dist[a] of the on-line fitness: covered = SPEC section 7; forward = NOT the "
+                        "SPEC, backward steps cover 0 (docs/online.md, round 5)")
     p.add_argument("--blind-bit", type=int, default=None)
     p.add_argument("--blind-after-target", type=int, default=None)
     p.add_argument("--adaptation-only", action="store_true",
@@ -198,14 +205,16 @@ def main(argv=None) -> int:
         (args.render.parent / "compare.md").write_text(text)
         print(text)
         return 0
-    seeds = list(range(1, args.seeds + 1))
+    seeds = list(range(args.first_seed, args.first_seed + args.seeds))
+    online = {} if args.distance == "covered" else {"distance_rule": args.distance}
     methods = args.methods.split(",")
     out = args.out / "compare"
     base = {"arena": args.arena, "out": str(out), "resume": args.resume, "generations_cap": args.generations_cap}
-    tasks = [] if args.adaptation_only else [{**base, "method": m, "seed": s} for m in methods for s in seeds]
+    tasks = [] if args.adaptation_only else [{**base, "method": m, "seed": s, "online": online}
+                                             for m in methods for s in seeds]
     if args.blind_bit is not None:
         tasks += [{**base, "method": "online", "seed": s, "adapt": True, "out": str(out / "adaptation"),
-                   "online": {"blind_bit": args.blind_bit, "blind_after_target": args.blind_after_target}}
+                   "online": {**online, "blind_bit": args.blind_bit, "blind_after_target": args.blind_after_target}}
                   for s in seeds]
     # The slow off-line runs first, so the pool stays busy.
     tasks.sort(key=lambda t: {"offline": 0, "online": 1, "baseline": 2}[t["method"]])
@@ -232,6 +241,7 @@ def main(argv=None) -> int:
             if s in results.get("offline", {}) and path.exists():
                 results["offline"][s]["best_genome"] = json.loads(path.read_text()).get("best_genome")
     report = build_report(results, args.arena, seeds)
+    report["online_distance_rule"] = args.distance
     if args.blind_bit is not None:
         rows = []
         for s in seeds:

@@ -53,7 +53,7 @@ from cosim.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
 from ga.evaluator import fitness as model_fitness
 from ga.evolution import GAConfig, GeneticAlgorithm
 from ga.genome import hex_from_rows, rows_from_hex
-from ga.motions import MOTION_ROTATION_DEG, MOTION_TRANSLATION_MM, OBSTACLE_MASK
+from ga.motions import DISTANCE_RULES, MOTION_ROTATION_DEG, MOTION_TRANSLATION_MM, OBSTACLE_MASK
 from ga.online_operators import diversity, targeted_mutants
 from ga.truth_table import truth_tables
 from ga.world_model import WorldModel
@@ -137,6 +137,11 @@ class OnlineConfig:
     # robot has visited least often (the sum of the visits of every changed state): behaviour
     # the model cannot tell apart stays what worked in the world (docs/online.md, round 5)
     download: str = "first"
+    # dist[a] of the model-based fitness (ga.motions.DISTANCE_RULES): "covered" is the SPEC (every
+    # translation, backward too); "forward" (NOT the SPEC, an option) rewards forward translation
+    # only. Measured in docs/online.md, round 5: the SPEC's reward for backing off is what keeps
+    # the on-line robot looping.
+    distance_rule: str = "covered"
     relax_window: bool = False
     # learning phase
     targeted: int = 0  # state-targeted mutants of the best written into the population per phase
@@ -199,6 +204,8 @@ class OnlineConfig:
             raise ValueError(f"generations_per_phase must be at least 1, got {self.generations_per_phase!r}")
         if self.escape_spread not in ("off", "leg", "target"):
             raise ValueError(f"escape_spread must be 'off', 'leg' or 'target', got {self.escape_spread!r}")
+        if self.distance_rule not in DISTANCE_RULES:
+            raise ValueError(f"distance_rule must be one of {DISTANCE_RULES}, got {self.distance_rule!r}")
         if self.download not in ("first", "closest"):
             raise ValueError(f"download must be 'first' or 'closest', got {self.download!r}")
         if self.loop_key not in ("pair", "motion"):
@@ -859,7 +866,8 @@ def adaptation_figures(target_log: list[dict], after: int, blinded_at: int, wind
 def make_run(config: OnlineConfig, backend: str = "reference", out: Path | None = None,
              resume: bool = False, progress: bool = False) -> OnlineRun:
     """A run on fresh boards of ``backend``; with ``resume``, continued from ``out/checkpoint.json``."""
-    controller, evaluator = make_boards(backend, reflex=config.reflex)
+    options = {} if config.distance_rule == "covered" else {"distance_rule": config.distance_rule}
+    controller, evaluator = make_boards(backend, reflex=config.reflex, **options)
     ckpt = None if out is None else Path(out) / "checkpoint.json"
     run = OnlineRun(config, controller, evaluator, checkpoint=ckpt, progress=progress, backend=backend)
     if resume:
@@ -892,6 +900,9 @@ def summary_table(summary: dict) -> str:
                      f"interactions, {summary['generations']:,} generations (Fig. 11)")
     reasons = ", ".join(f"{k} {v}" for k, v in summary["phase_reasons"].items())
     lines.append(f"phase reasons: {reasons}; wall time {summary['wall_time_s']:.1f} s")
+    if summary["config"].get("distance_rule", "covered") != "covered":
+        lines.append(f"fitness distance term: dist[a] = {summary['config']['distance_rule']} "
+                     "(NOT the SPEC's dist[a]; docs/online.md, round 5)")
     if "adaptation" in summary:
         ad = summary["adaptation"]
         lines.append(f"adaptation: IR bit {summary['config']['blind_bit']} blinded after target "
@@ -980,7 +991,7 @@ def config_from_args(args) -> OnlineConfig:
         loop_still_mm=args.loop_still_mm, loop_patience=args.loop_patience,
         escape_rewrite=args.escape_rewrite, escape_credit=args.escape_credit, loop_penalty=args.loop_penalty, loop_relax=args.loop_relax, loop_radius_mm=args.loop_radius_mm, relax_window=args.relax_window, escape_spread=args.escape_spread,
         mark_loops=args.mark_loops, model_update=args.model_update,
-        loop_cycles=args.loop_cycles, download=args.download,
+        loop_cycles=args.loop_cycles, download=args.download, distance_rule=args.distance,
         blind_bit=args.blind_bit, blind_after_target=args.blind_after_target,
     )
 
@@ -1032,6 +1043,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--loop-radius-mm", type=float, default=d.loop_radius_mm,
                    help="loop_reentries/loop_repeats fire only if the robot is back within this "
                         "distance by odometry (commanded motions; 0: off)")
+    p.add_argument("--distance", choices=DISTANCE_RULES, default=d.distance_rule,
+                   help="dist[a] of the model-based fitness: covered = SPEC section 7 (backward "
+                        "steps count); forward = NOT the SPEC, only forward translation counts "
+                        "(docs/online.md, round 5)")
     p.add_argument("--loop-cycles", type=int, default=d.loop_cycles, metavar="K",
                    help="stop a leg once the robot has gone K times round one simple cycle of "
                         "states back to where it is, within --loop-radius-mm (0: off)")

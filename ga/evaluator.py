@@ -32,7 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ga.genome import validate_rows
-from ga.motions import MAX_MOTION_DISTANCE_MM, MOTION_DISTANCE_MM, N_MOTIONS, N_STATES, OBSTACLE_MASK
+from ga.motions import MAX_MOTION_DISTANCE_MM, N_MOTIONS, N_STATES, OBSTACLE_MASK, motion_distances
 from ga.truth_table import motion_of, truth_tables
 from ga.world_model import WorldModel
 
@@ -76,16 +76,17 @@ def fitness(result: EvalResult, n_states: int) -> np.ndarray:
 # -- the pseudo-code, one genome ------------------------------------------------------------------
 
 
-def trace_counts(motion, model: WorldModel) -> tuple[int, int, int]:
+def trace_counts(motion, model: WorldModel, distance_rule: str = "covered") -> tuple[int, int, int]:
     """The SPEC pseudo-code for one controller given as ``motion(state) -> code`` (a callable,
-    or a 256-entry truth table). Returns (crashes, loops, distance)."""
+    or a 256-entry truth table). Returns (crashes, loops, distance). ``distance_rule``: dist[a],
+    ``ga.motions.DISTANCE_RULES`` ("covered" is the SPEC)."""
     if not callable(motion):
         table = [int(v) for v in np.asarray(motion).reshape(-1)]
         if len(table) != N_STATES:
             raise ValueError(f"a truth table has {N_STATES} entries, got {len(table)}")
         motion = table.__getitem__
     valid, crash, nxt = model.valid.tolist(), model.crash.tolist(), model.next_state.tolist()
-    dist = [int(d) for d in MOTION_DISTANCE_MM]
+    dist = [int(d) for d in motion_distances(distance_rule)]
     tested: set[int] = set()
     crashes = loops = distance = 0
     for s0 in model.states.tolist():
@@ -115,20 +116,23 @@ def trace_counts(motion, model: WorldModel) -> tuple[int, int, int]:
     return crashes, loops, distance
 
 
-def evaluate_python(rows, model: WorldModel, reflex: bool = True) -> tuple[int, int, int]:
+def evaluate_python(rows, model: WorldModel, reflex: bool = True,
+                    distance_rule: str = "covered") -> tuple[int, int, int]:
     """(crashes, loops, distance) of one genome (50,) by the plain pseudo-code, the motion of each
     visited state computed by the plain row-by-row evaluation ``ga.truth_table.motion_of``."""
     rows = validate_rows(rows)
     if rows.ndim != 1:
         raise ValueError(f"evaluate_python takes one genome of shape (50,), got {rows.shape!r}")
-    return trace_counts(lambda s: motion_of(rows, s, reflex), model)
+    return trace_counts(lambda s: motion_of(rows, s, reflex), model, distance_rule)
 
 
 # -- the vectorised population evaluator ----------------------------------------------------------
 
 
-def evaluate_tables(tables, model: WorldModel) -> EvalResult:
-    """(crashes, loops, distance) for truth tables (P, 256) (or (256,)): see the module docstring."""
+def evaluate_tables(tables, model: WorldModel, distance_rule: str = "covered") -> EvalResult:
+    """(crashes, loops, distance) for truth tables (P, 256) (or (256,)): see the module docstring.
+    ``distance_rule``: dist[a], ``ga.motions.DISTANCE_RULES`` ("covered" is the SPEC)."""
+    dist = motion_distances(distance_rule)
     tables = np.asarray(tables)
     if tables.ndim == 1:
         tables = tables[None]
@@ -148,7 +152,7 @@ def evaluate_tables(tables, model: WorldModel) -> EvalResult:
         (np.arange(N_STATES) & OBSTACLE_MASK) == 0)[:, None]
     # Packed per entry: successor position (bits 0-8), crash (bit 9), distance covered (10 and up).
     successor = np.where(moves & ~free_self, index_of[model.next_state], n)
-    step_distance = np.where(moves, MOTION_DISTANCE_MM[None, :], 0)
+    step_distance = np.where(moves, dist[None, :], 0)
     packed = (successor | (model.crash.astype(np.intp) << 9) | (step_distance << 10)).ravel()
     flat = states[None, :] * N_MOTIONS + np.take(tables, states, axis=1)  # (P, N) entry per state
     entry = np.take(packed, flat)
@@ -184,8 +188,10 @@ def evaluate_tables(tables, model: WorldModel) -> EvalResult:
     return EvalResult(crashes, loops, distance)
 
 
-def evaluate_population(rows, model: WorldModel, reflex: bool = True) -> EvalResult:
+def evaluate_population(rows, model: WorldModel, reflex: bool = True,
+                        distance_rule: str = "covered") -> EvalResult:
     """(crashes, loops, distance) of every genome of ``rows`` (P, 50) (or one genome (50,)) on
     ``model``; int64 arrays (P,). Bit-exact with :func:`evaluate_python`."""
     rows = validate_rows(rows)
-    return evaluate_tables(truth_tables(rows[None] if rows.ndim == 1 else rows, reflex), model)
+    tables = truth_tables(rows[None] if rows.ndim == 1 else rows, reflex)
+    return evaluate_tables(tables, model, distance_rule)

@@ -55,6 +55,23 @@ MOTION_ROTATION_DEG = np.array([0.0, 0.0, TURN_DEG, -TURN_DEG, TURN_DEG, -TURN_D
 MOTION_DISTANCE_MM = np.abs(MOTION_TRANSLATION_MM).astype(np.int64)
 MAX_MOTION_DISTANCE_MM = int(MOTION_DISTANCE_MM.max())
 
+# Which motions the fitness's distance term rewards. "covered" is the SPEC's dist[a] (above):
+# every translation, backward ones too. "forward" (NOT the SPEC; docs/online.md, round 5) counts
+# only forward translation, so a backward step covers 0 like a turn: with "covered" the distance
+# term pays a backward-turn 50 mm where a turn in place gets 0, and the looping back-off-and-return
+# it favours is what most on-line interactions were lost to. The maximum (forward, 50 mm) is the
+# same for both, so the fitness keeps its scale.
+DISTANCE_RULES = ("covered", "forward")
+
+
+def motion_distances(rule: str = "covered") -> np.ndarray:
+    """dist[a] (int64, (8,), mm) of the model-based fitness under ``rule`` (see DISTANCE_RULES)."""
+    if rule == "covered":
+        return MOTION_DISTANCE_MM.copy()
+    if rule == "forward":
+        return np.maximum(MOTION_TRANSLATION_MM, 0).astype(np.int64)
+    raise ValueError(f"distance rule must be one of {DISTANCE_RULES}, got {rule!r}")
+
 # The reflex (SPEC section 6): the motion taken when no obstacle bit is set, by target sector.
 REFLEX_MOTION = np.array(
     [Motion.FORWARD, Motion.TURN_LEFT, Motion.TURN_LEFT, Motion.TURN_RIGHT], dtype=np.uint8

@@ -69,8 +69,8 @@ from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
 from ga.genome import N_ROWS, ROW_BITS
-from ga.motions import (MAX_MOTION_DISTANCE_MM, MOTION_DISTANCE_MM, N_INPUTS, N_MOTIONS, N_OUTPUTS,
-                        N_STATES, OBSTACLE_MASK, REFLEX_MOTION, SECTOR_SHIFT)
+from ga.motions import (MAX_MOTION_DISTANCE_MM, N_INPUTS, N_MOTIONS, N_OUTPUTS, N_STATES,
+                        OBSTACLE_MASK, REFLEX_MOTION, SECTOR_SHIFT, motion_distances)
 from hdl.and_or_array import AndOrArray, _check_positive
 from hdl.controller_ehw import row_addr_bits
 from ga.world_model import WorldModel
@@ -138,8 +138,10 @@ class EvaluatorEHW(wiring.Component):
         |S|.
     """
 
-    def __init__(self, k: int = N_ROWS, double_buffer: bool = True):
+    def __init__(self, k: int = N_ROWS, double_buffer: bool = True, distance_rule: str = "covered"):
         self.k = _check_positive("k", k)
+        self.distance_rule = distance_rule
+        self.distances = motion_distances(distance_rule)  # dist[a]; refuses an unknown rule
         if not isinstance(double_buffer, bool):
             raise TypeError(f"double_buffer must be a bool, got {double_buffer!r}")
         self.double_buffer = double_buffer
@@ -238,7 +240,7 @@ class EvaluatorEHW(wiring.Component):
             motion.eq(Mux(use_reflex, reflex_motion, array.y)),
             rd.addr.eq(Cat(motion, x)),
         ]
-        step_distance = Array(Const(int(d), DISTANCE_BITS) for d in MOTION_DISTANCE_MM)[cur_motion]
+        step_distance = Array(Const(int(d), DISTANCE_BITS) for d in self.distances)[cur_motion]
 
         # -- accumulators (results are latched at the end) -------------------------------------------
         acc_crashes = Signal(COUNT_BITS)

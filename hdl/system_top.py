@@ -91,8 +91,9 @@ class SystemTop(wiring.Component):
         Results RAM read port (synchronous): crashes | loops << 9 | distance << 18.
     """
 
-    def __init__(self, p_max: int = P_MAX):
+    def __init__(self, p_max: int = P_MAX, distance_rule: str = "covered"):
         self.p_max = _check_positive("p_max", p_max)
+        self.distance_rule = distance_rule  # dist[a] of the evaluator (ga.motions.DISTANCE_RULES)
         index = max(1, (p_max - 1).bit_length())
         row_addr = row_addr_bits(N_ROWS)
         super().__init__({
@@ -130,7 +131,7 @@ class SystemTop(wiring.Component):
     def elaborate(self, platform):
         m = Module()
         ctl = m.submodules.ctl = ControllerEHW()
-        ev = m.submodules.ev = EvaluatorEHW()
+        ev = m.submodules.ev = EvaluatorEHW(distance_rule=self.distance_rule)
 
         # -- the controller board: straight through ---------------------------------------------
         m.d.comb += [

@@ -34,21 +34,39 @@ def random_tables(rng, count, motions):
     return rng.choice(np.asarray(motions, dtype=np.uint8), size=(count, 256))
 
 
-def assert_agrees(tables, model):
-    result = evaluate_tables(tables, model)
+def assert_agrees(tables, model, distance_rule="covered"):
+    result = evaluate_tables(tables, model, distance_rule)
     for i, table in enumerate(tables):
-        assert result.row(i) == trace_counts(table, model), f"table {i}"
+        assert result.row(i) == trace_counts(table, model, distance_rule), f"table {i}"
     return result
 
 
 @settings(max_examples=300)
 @given(seed=st.integers(0, 2**32 - 1), n_pool=st.integers(1, 20), n_obs=st.integers(0, 80),
-       p_crash=st.sampled_from([0.0, 0.1, 0.5, 1.0]), n_motions=st.integers(1, 8))
-def test_vectorised_agrees_with_pseudo_code(seed, n_pool, n_obs, p_crash, n_motions):
+       p_crash=st.sampled_from([0.0, 0.1, 0.5, 1.0]), n_motions=st.integers(1, 8),
+       distance_rule=st.sampled_from(["covered", "forward"]))
+def test_vectorised_agrees_with_pseudo_code(seed, n_pool, n_obs, p_crash, n_motions, distance_rule):
     rng = np.random.default_rng(seed)
     motions = rng.choice(8, size=n_motions, replace=False)
     model = random_model(rng, n_pool, n_obs, p_crash, motions=8 if n_obs % 2 else n_motions)
-    assert_agrees(random_tables(rng, 20, motions), model)
+    assert_agrees(random_tables(rng, 20, motions), model, distance_rule)
+
+
+def test_forward_distance_rule_pays_only_forward_translation():
+    """dist[a]: the SPEC's "covered" counts every translation; the option "forward" only forward
+    ones (forward, forward-left, forward-right), with the same maximum."""
+    from ga.motions import motion_distances
+
+    assert motion_distances().tolist() == MOTION_DISTANCE_MM.tolist() == [50, 50, 0, 0, 50, 50, 50, 50]
+    assert motion_distances("forward").tolist() == [50, 0, 0, 0, 50, 50, 0, 0]
+    wall = make_state(1 << 3, 1)  # obstacle left, ball left
+    model = WorldModel()
+    model.observe(wall, Motion.BACKWARD_RIGHT, 0, False)
+    back = np.full((1, 256), Motion.BACKWARD_RIGHT, dtype=np.uint8)
+    assert evaluate_tables(back, model).row(0) == (0, 0, 50)
+    assert evaluate_tables(back, model, "forward").row(0) == (0, 0, 0)
+    with pytest.raises(ValueError, match="distance rule"):
+        motion_distances("backward")
 
 
 @settings(max_examples=20)

@@ -72,6 +72,27 @@ def test_amaranth_sim_matches_reference_on_shared_cases():
     assert len(seen) == sum(len(pop) for _, _, pop, _ in cases())
 
 
+def test_forward_distance_rule_matches_reference():
+    """The non-SPEC option ``distance_rule="forward"`` (backward steps cover 0) in the HDL: the
+    same counts as the reference under that rule, and another distance than the SPEC's."""
+    rng = np.random.default_rng(11)
+    model = random_model(rng, 60, 400, 0.1)
+    pop = specific_rows(rng, 6)
+    want = evaluate_population(pop, model, True, distance_rule="forward")
+    spec = evaluate_population(pop, model, True)
+    assert (want.distance < spec.distance).any()  # the case exercises a backward step
+
+    async def body(host):
+        await host.write_model(model)
+        for i, rows in enumerate(pop):
+            counts, _, _ = await host.evaluate(rows, True)
+            assert counts == want.row(i), f"genome {i}"
+
+    run_sim(body, distance_rule="forward")
+    with pytest.raises(ValueError, match="distance rule"):
+        EvaluatorEHW(distance_rule="sideways")
+
+
 def test_overlapped_loading_matches_and_hides_the_rows():
     rng = np.random.default_rng(5)
     model = random_model(rng, 70, 400, 0.1)

@@ -288,3 +288,22 @@ def test_closest_download_keeps_the_behaviour_of_the_visited_states():
     assert run._closest(pop, fitness, 2, eligible, {}) == (2, 7)[int(np.argmin(changed))]
     with pytest.raises(ValueError, match="download"):
         OnlineConfig(download="best")
+
+
+def test_forward_distance_option_is_deterministic_and_changes_the_lifetime():
+    """``distance_rule="forward"`` (NOT the SPEC) reaches the evaluator board: the same seed gives
+    the same lifetime, another than under the SPEC's dist[a], and the summary says so."""
+    from cosim.online import summary_table
+
+    def lifetime(rule):
+        run = make_run(OnlineConfig(seed=2, **{**SMALL, "distance_rule": rule})).run()
+        assert run.evaluator.distance_rule == rule
+        return run
+
+    a, b, spec = lifetime("forward"), lifetime("forward"), lifetime("covered")
+    assert a.motions == b.motions and a.targets == 4
+    assert a.motions != spec.motions
+    assert "NOT the SPEC" in summary_table(a.summary())
+    assert "NOT the SPEC" not in summary_table(spec.summary())
+    with pytest.raises(ValueError, match="distance_rule"):
+        OnlineConfig(distance_rule="backward")
