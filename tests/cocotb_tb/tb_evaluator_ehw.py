@@ -13,6 +13,7 @@ samples them; outputs are read at the next falling edge (one loop step = one clo
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 
@@ -215,3 +216,20 @@ async def idle_writes_count_and_busy_start_is_ignored(dut):
     await tb.tick()
     assert not tb.get("done") and tb.get("ready")
     assert (await tb.evaluate(rows))[0] == counts  # the writes while busy did not land
+
+
+@cocotb.test(skip=os.environ.get("EHW_DISTANCE_RULE", "covered") == "covered")
+async def distance_rule_matches_reference(dut):
+    """Verilog built with EvaluatorEHW(distance_rule=EHW_DISTANCE_RULE) (an option, NOT the SPEC's
+    dist[a]) against the reference under the same rule (tests/test_evaluator_ehw.py starts it)."""
+    rule = os.environ["EHW_DISTANCE_RULE"]
+    tb = Testbench(dut)
+    await tb.reset()
+    rng = np.random.default_rng(11)
+    model = random_model(rng, 60, 400, 0.1)
+    pop = specific_rows(rng, 6)
+    want = evaluate_population(pop, model, True, distance_rule=rule)
+    await tb.write_model(model)
+    for i, rows in enumerate(pop):
+        counts = (await tb.evaluate(rows, True))[0]
+        assert counts == want.row(i), f"genome {i}: Verilog {counts}, reference {want.row(i)} ({rule})"
