@@ -117,6 +117,25 @@ def _fmt(stat: dict) -> str:
     return text
 
 
+def online_options(items: list[str]) -> dict:
+    """``["download=closest", "loop_cycles=1"]`` -> OnlineConfig fields of the right types."""
+    import dataclasses
+
+    from cosim.online import OnlineConfig
+
+    fields = {f.name: type(getattr(OnlineConfig(), f.name)) for f in dataclasses.fields(OnlineConfig)}
+    options = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep or key not in fields or key == "seed":
+            raise SystemExit(f"--online wants KEY=VALUE with KEY an OnlineConfig field, got {item!r}")
+        kind = fields[key]
+        options[key] = (value.lower() in ("1", "true", "yes")) if kind is bool else \
+            (value if kind in (str, type(None)) else kind(value))
+    OnlineConfig(**options)  # refuse a bad value now, not in a worker
+    return options
+
+
 def build_report(results: dict, arena: str, seeds: list[int]) -> dict:
     report = {"arena": arena, "seeds": seeds, "paper": PAPER, "methods": {}, "per_seed": results}
     for method, per_seed in results.items():
@@ -150,6 +169,9 @@ def markdown(report: dict) -> str:
     if report.get("online_distance_rule", "covered") != "covered":
         lines += ["", f"On-line runs with the option dist[a] = {report['online_distance_rule']} (NOT the "
                   "SPEC's fitness; docs/online.md, round 5)."]
+    if report.get("online_options"):
+        lines += ["", "On-line options: " + ", ".join(f"`{k}={v}`" for k, v in report["online_options"].items())
+                  + " (defaults otherwise)."]
     if "interaction_ratio" in report:
         r = report["interaction_ratio"]
         lines += ["", f"Interaction ratio off-line / on-line: **{r['of_medians']:.0f}** (ratio of the "
@@ -190,6 +212,8 @@ def main(argv=None) -> int:
     p.add_argument("--distance", choices=("covered", "forward"), default="covered",
                    help="dist[a] of the on-line fitness: covered = SPEC section 7; forward = NOT the "
                         "SPEC, backward steps cover 0 (docs/online.md, round 5)")
+    p.add_argument("--online", action="append", default=[], metavar="KEY=VALUE",
+                   help="an OnlineConfig field for the on-line runs, e.g. download=closest (repeatable)")
     p.add_argument("--blind-bit", type=int, default=None)
     p.add_argument("--blind-after-target", type=int, default=None)
     p.add_argument("--adaptation-only", action="store_true",
@@ -207,6 +231,7 @@ def main(argv=None) -> int:
         return 0
     seeds = list(range(args.first_seed, args.first_seed + args.seeds))
     online = {} if args.distance == "covered" else {"distance_rule": args.distance}
+    online.update(online_options(args.online))
     methods = args.methods.split(",")
     out = args.out / "compare"
     base = {"arena": args.arena, "out": str(out), "resume": args.resume, "generations_cap": args.generations_cap}
@@ -242,6 +267,7 @@ def main(argv=None) -> int:
                 results["offline"][s]["best_genome"] = json.loads(path.read_text()).get("best_genome")
     report = build_report(results, args.arena, seeds)
     report["online_distance_rule"] = args.distance
+    report["online_options"] = online
     if args.blind_bit is not None:
         rows = []
         for s in seeds:

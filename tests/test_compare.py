@@ -45,3 +45,20 @@ def test_command_line_baseline_only(tmp_path):
     report = json.loads((tmp_path / "compare.json").read_text())
     assert report["per_seed"]["baseline"]["1"]["interactions"] > 0
     assert "reactive baseline" in (tmp_path / "compare.md").read_text()
+
+
+def test_online_options_are_typed_checked_and_reported():
+    import pytest
+
+    from cosim.compare import online_options
+
+    assert online_options(["download=closest", "loop_cycles=1", "escape=false"]) == \
+        {"download": "closest", "loop_cycles": 1, "escape": False}
+    with pytest.raises(ValueError, match="download"):
+        online_options(["download=best"])
+    with pytest.raises(SystemExit, match="KEY=VALUE"):
+        online_options(["no_such_field=1"])
+    report = build_report({"online": {1: _fake(9_000, 300, 500)}}, "default", [1])
+    report.update(online_distance_rule="forward", online_options={"distance_rule": "forward", "download": "closest"})
+    text = markdown(report)
+    assert "NOT the SPEC" in text and "`download=closest`" in text
