@@ -221,3 +221,17 @@ def test_unknown_simulator_is_refused(monkeypatch):
     assert simulator_default() == "icarus"
     with pytest.raises(ValueError, match="ghdl"):
         run_cocotb(sources=[], toplevel="x", test_module="x", test_dir=".", simulator="ghdl")
+
+
+def test_forward_distance_rule_on_the_amaranth_boards():
+    """The non-SPEC option distance_rule="forward" reaches the evaluator EHW: every population is
+    evaluated on the HDL and checked against the reference under the same rule (a mismatch raises),
+    and the lifetime is the reference's, another one than under the SPEC's dist[a]."""
+    import dataclasses
+
+    config = dataclasses.replace(SHORT, seed=1, distance_rule="forward")
+    hdl = make_run(config, "amaranth").run()
+    reference = make_run(config, "reference").run()
+    spec = make_run(dataclasses.replace(config, distance_rule="covered"), "reference").run()
+    assert comparable(hdl.summary()) == comparable(reference.summary())
+    assert hdl.motions == reference.motions != spec.motions
