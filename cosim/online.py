@@ -484,8 +484,10 @@ class OnlineRun:
             if any(w[-p * r + i] != cycle[i] for r in range(2, rounds + 1) for i in range(p)):
                 continue
             if self.config.loop_radius_mm:
-                (x0, y0), (x1, y1) = self.odo_hist[-n - 1] if n < len(self.odo_hist) else self.odo_hist[0], \
-                    self.odo_hist[-1]
+                # where the first round began: the position after the pair before it (the oldest
+                # one kept if the window holds no earlier pair)
+                x0, y0 = self.odo_hist[max(-n - 1, -len(self.odo_hist))]
+                x1, y1 = self.odo_hist[-1]
                 if math.hypot(x1 - x0, y1 - y0) > self.config.loop_radius_mm:
                     continue
             return True
