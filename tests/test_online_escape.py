@@ -307,3 +307,13 @@ def test_forward_distance_option_is_deterministic_and_changes_the_lifetime():
     assert "NOT the SPEC" not in summary_table(spec.summary())
     with pytest.raises(ValueError, match="distance_rule"):
         OnlineConfig(distance_rule="backward")
+
+
+def test_command_line_flags_of_round_5_reach_the_config():
+    from cosim.online import build_parser, config_from_args
+
+    args = build_parser().parse_args(["--distance", "forward", "--loop-cycles", "1", "--download", "closest"])
+    config = config_from_args(args)
+    assert (config.distance_rule, config.loop_cycles, config.download) == ("forward", 1, "closest")
+    default = config_from_args(build_parser().parse_args([]))
+    assert (default.distance_rule, default.loop_cycles, default.download) == ("covered", 0, "first")
