@@ -64,7 +64,9 @@ def test_other_seed_gives_another_lifetime():
                                       "loop_radius_mm": 80.0},
                                      {"loop_repeats": 4, "loop_reentries": 6, "loop_window": 15,
                                       "escape_credit": True},
-                                     {"loop_window": 15, "loop_penalty": 0.4}])
+                                     {"loop_window": 15, "loop_penalty": 0.4},
+                                     {"loop_window": 15, "distance_rule": "forward", "loop_cycles": 1,
+                                      "download": "closest"}])
 def test_resume_equals_uninterrupted(tmp_path, options):
     config = OnlineConfig(seed=5, **{**SMALL, **options})
     whole = make_run(config, out=tmp_path / "whole").run()
