@@ -135,7 +135,8 @@ class BackendUnavailable(RuntimeError):
     """A board backend that is named in SPEC section 9 but not installed in this checkout yet."""
 
 
-# name -> factory(reflex: bool, **options) -> (ControllerBoard, EvaluatorBoard). The HDL backends
+# name -> factory(reflex: bool, distance_rule: str = "covered", **options) -> (ControllerBoard,
+# EvaluatorBoard); distance_rule: dist[a] of the evaluator (ga.motions.DISTANCE_RULES). The HDL backends
 # register themselves here (``register_backend``) so that the loops never import them directly.
 _FACTORIES: dict = {}
 
@@ -149,7 +150,7 @@ def register_backend(name: str, factory) -> None:
 
 def _reference_factory(reflex: bool = True, distance_rule: str = "covered", **options):
     if options:
-        raise TypeError(f"the reference backend takes no options but distance_rule, got {sorted(options)!r}")
+        raise TypeError(f"the reference backend takes only distance_rule, got {sorted(options)!r}")
     return ReferenceControllerBoard(reflex=reflex), ReferenceEvaluatorBoard(reflex=reflex, distance_rule=distance_rule)
 
 

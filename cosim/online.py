@@ -868,8 +868,7 @@ def adaptation_figures(target_log: list[dict], after: int, blinded_at: int, wind
 def make_run(config: OnlineConfig, backend: str = "reference", out: Path | None = None,
              resume: bool = False, progress: bool = False) -> OnlineRun:
     """A run on fresh boards of ``backend``; with ``resume``, continued from ``out/checkpoint.json``."""
-    options = {} if config.distance_rule == "covered" else {"distance_rule": config.distance_rule}
-    controller, evaluator = make_boards(backend, reflex=config.reflex, **options)
+    controller, evaluator = make_boards(backend, reflex=config.reflex, distance_rule=config.distance_rule)
     ckpt = None if out is None else Path(out) / "checkpoint.json"
     run = OnlineRun(config, controller, evaluator, checkpoint=ckpt, progress=progress, backend=backend)
     if resume:
