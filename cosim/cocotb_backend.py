@@ -193,12 +193,12 @@ def write_system_verilog(out_dir: Path | str | None = None, p_max: int | None = 
     from amaranth.back import verilog
 
     from cosim.cocotb_run import SIM_BUILD
-    from hdl.system_top import SystemTop
+    from hdl.system_top import P_MAX, SystemTop
 
     out = Path(out_dir) if out_dir else SIM_BUILD / "verilog"
     out.mkdir(parents=True, exist_ok=True)
     path = out / f"{TOPLEVEL}.v"
-    top = SystemTop(distance_rule=distance_rule) if p_max is None else SystemTop(p_max=p_max, distance_rule=distance_rule)
+    top = SystemTop(p_max=P_MAX if p_max is None else p_max, distance_rule=distance_rule)
     path.write_text(icarus_time_zero_fix(verilog.convert(top, name=TOPLEVEL, emit_src=False)))
     return path
 
