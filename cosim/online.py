@@ -267,7 +267,6 @@ class OnlineRun:
         self.curve_states: list[int] = []  # |S| after each interaction
         self.curve_transitions: list[int] = []
         self.known_crash_repeats = 0  # motions chosen in a state where the model knows they crash
-        self.visits = np.zeros(256, dtype=np.int64)  # steps taken in each state (download "closest")
         self.window = deque(maxlen=max(config.loop_window, 64))  # recent (state, motion)
         self.dists = deque(maxlen=self.window.maxlen)  # the ball distance after each of them
         self.odometry = [0.0, 0.0, 0.0]  # dead-reckoned (x, y, heading) from the commanded motions
@@ -311,7 +310,6 @@ class OnlineRun:
         self.transitions.add((s, motion, step.state, step.crashed))
         self.motions.append(motion)
         self.pre_states.append(s)
-        self.visits[s] += 1
         self.state_log.append(step.state)
         self.interactions += 1
         self.leg_steps += 1
@@ -589,7 +587,8 @@ class OnlineRun:
             return i_best
         current = truth_tables(self.best_rows[None], reflex=self.config.reflex)[0]
         tables = truth_tables(pop[index], reflex=self.config.reflex)
-        cost = ((tables != current) * self.visits).sum(axis=1)
+        visits = np.bincount(self.pre_states, minlength=256)  # steps taken in each state
+        cost = ((tables != current) * visits).sum(axis=1)
         record["ties"] = len(index)
         return int(index[np.argmin(cost)])
 

@@ -276,7 +276,7 @@ def test_closest_download_keeps_the_behaviour_of_the_visited_states():
     rng = np.random.default_rng(3)
     pop = random_population(rng, 8)
     run.best_rows = pop[5].copy()
-    run.visits[:] = 1
+    run.pre_states = list(range(256))  # every state visited once
     fitness = np.array([0.1, 0.2, 0.9, 0.3, 0.2, 0.9, 0.5, 0.9])
     record = {}
     assert run._closest(pop, fitness, 2, None, record) == 5  # the running controller itself
