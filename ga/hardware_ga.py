@@ -1,0 +1,406 @@
+"""The hardware GA of SPEC section 12: the bit-exact NumPy reference of ``hdl.learner``.
+
+The learning engine on the chip runs the GA itself: the population in on-chip RAM, ``lanes``
+evaluator lanes, and a random source made of xorshift32 generators. This module is the same
+algorithm in NumPy, so that the same seed gives the same populations, the same scores and the
+same best controller here and in the HDL. The host GA (``ga.evolution``, a NumPy ``Generator``)
+stays as it is; this one is designed so the hardware needs few resources:
+
+Random source
+-------------
+Four xorshift32 generators per lane (Marsaglia's 13/17/5 triple: a register and three shift-XORs,
+one step per cycle): ``SEL`` draws the tournament contestants and the crossover decision, ``ROW0``,
+``ROW1``, ``ROW2`` one word each per bred row. Every generator steps on a fixed schedule, whatever
+the draws decide: per child slot, ``SEL`` steps 2T + 1 times and each row generator 50 times, in
+every lane and every slot (a slot with no child, past the end of the population, still steps).
+So the k-th draw of a generator is its k-th state after the seed, and the reference computes a
+whole pass of draws at once (`xorshift_stream`, by doubling on the linear map of one step).
+Generator ``g`` of lane ``j`` starts from ``seed ^ seed_salt(j, g)`` (``SEED_FALLBACK`` if that is 0).
+A rate is a threshold on a 16-bit field of one word: the event happens when the field is below it.
+
+One pass (a generation: breed, then evaluate)
+---------------------------------------------
+Child ``i`` is bred and evaluated by lane ``i % lanes`` in slot ``i // lanes``.
+
+- The first pass after the population is written (no scores yet) copies every individual
+  unchanged: child ``i`` = individual ``i``; it only evaluates.
+- Every later pass breeds from the previous pass's population and scores. Child 0 is the elite:
+  the first individual of highest score, copied unchanged. Every other child: parent ``a`` and
+  parent ``b`` by tournament (T contestants each, drawn uniformly with replacement: index =
+  (16-bit field * P) >> 16; the first drawn of the highest score wins), a crossover decision
+  (``SEL`` field < ``cross_threshold``), then row by row (row r from ``b`` when crossing and bit 0
+  of ``ROW0`` is set, else from ``a``): the DNF-aware mutations of ``ga.operators`` in one row each,
+  in the host GA's order:
+    1. literal: with ``literal_threshold`` (8 x the per-literal rate: one event per row at most),
+       literal field ``(ROW0 >> 1) & 7`` moves to another legal value: don't-care -> x_i
+       (``ROW0`` bit 4 = 0) or NOT x_i; a connected literal -> don't-care when the byte
+       ``ROW0[8:16]`` < ``to_dc_threshold`` (the host's ratio (1 - p)/(1 - p/2)), else to the
+       opposite literal; a contradiction -> don't-care;
+    2. output: with ``output_threshold`` (3 x the per-bit rate), output bit ``(ROW1[0:8] * 3) >> 8``
+       flips;
+    3. switch: with ``switch_threshold``, an on row goes off (outputs cleared, literals kept), an
+       off row on with outputs ``((ROW2[0:8] * 7) >> 8) + 1``.
+  The row-replacement operator of the host GA (``replace_rate``) has no hardware counterpart.
+- Every child is evaluated on the world model (``ga.evaluator``: the counts are the evaluator
+  board's) and scored with :func:`score`.
+
+Fitness as an integer
+---------------------
+``score = 5 D (N - crashes) + 4 D (N - loops) + distance`` with D = max dist[a] = 50 mm, which is
+exactly 10 D N times the SPEC's fitness 0.5 (1 - c/N) + 0.4 (1 - l/N) + 0.1 d / (N D): the same
+order as the exact (rational) fitness, with no division and no float (17 bits for N <= 256).
+The float fitness of ``ga.evaluator.fitness`` orders the same way except between exactly equal
+fitnesses, whose floats may differ in the last bit (e.g. 4 more crashes and 5 fewer loops); the
+hardware treats those as ties, and a tie goes to the lower index (elite) or the first drawn
+(tournament). `tests/test_hardware_ga.py` checks both statements.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from ga.evaluator import EvalResult, evaluate_population
+from ga.genome import LITERAL_MASK, N_ROWS, OUTPUT_MASK, OUTPUT_SHIFT, ROW_DTYPE, validate_rows
+from ga.motions import MAX_MOTION_DISTANCE_MM
+from ga.operators import DEFAULT_LITERAL_P, CONTRADICTION, DONT_CARE, NEGATIVE, POSITIVE
+from ga.world_model import WorldModel
+
+# -- the random source -----------------------------------------------------------------------------
+
+MASK32 = 0xFFFF_FFFF
+SEL, ROW0, ROW1, ROW2 = range(4)  # the generators of one lane
+GENERATORS = 4
+SEED_FALLBACK = 0x9E37_79B9  # a generator's state must not be 0
+_SALT_STEP = 0x6C07_8965  # odd: the salts of distinct (lane, generator) are distinct
+
+# Fields of the words (one word per generator per draw): the HDL slices the same bits.
+FIELD16_SHIFT = 16  # bits 16..31: the 16-bit field compared with a threshold / scaled to an index
+TAKE_B_BIT = 0  # ROW0
+LITERAL_INDEX_SHIFT = 1  # ROW0 bits 1..3
+POLARITY_BIT = 4  # ROW0
+TO_DC_SHIFT = 8  # ROW0 bits 8..15
+CHOICE_MASK = 0xFF  # ROW1, ROW2 bits 0..7
+SCORE_BITS = 17
+
+
+def seed_salt(lane: int, generator: int) -> int:
+    """The constant XORed into the seed for generator ``generator`` of lane ``lane``."""
+    return ((GENERATORS * lane + generator + 1) * _SALT_STEP) & MASK32
+
+
+def lane_seeds(seed: int, lanes: int) -> np.ndarray:
+    """Initial states (lanes, 4) uint32 of every generator, from a 32-bit ``seed``."""
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or not 0 <= seed <= MASK32:
+        raise ValueError(f"a hardware GA seed is a 32-bit unsigned integer, got {seed!r}")
+    states = np.empty((lanes, GENERATORS), dtype=np.uint32)
+    for j in range(lanes):
+        for g in range(GENERATORS):
+            v = int(seed) ^ seed_salt(j, g)
+            states[j, g] = v if v else SEED_FALLBACK
+    return states
+
+
+def xorshift32(x: int) -> int:
+    """One step of the generator (the draw is the new state)."""
+    x ^= (x << 13) & MASK32
+    x ^= x >> 17
+    x ^= (x << 5) & MASK32
+    return x
+
+
+def _step_words(x: np.ndarray) -> np.ndarray:
+    x = x.astype(np.uint32, copy=True)
+    x ^= x << np.uint32(13)
+    x ^= x >> np.uint32(17)
+    x ^= x << np.uint32(5)
+    return x
+
+
+def _tables_of(columns: np.ndarray) -> np.ndarray:
+    """(4, 256) uint32 byte tables of the GF(2)-linear map with these 32 column images."""
+    tables = np.zeros((4, 256), dtype=np.uint32)
+    for byte in range(4):
+        for bit in range(8):
+            has = (np.arange(256) >> bit) & 1 == 1
+            tables[byte, has] ^= columns[8 * byte + bit]
+    return tables
+
+
+def _apply(tables: np.ndarray, x: np.ndarray) -> np.ndarray:
+    return (tables[0][x & 0xFF] ^ tables[1][(x >> 8) & 0xFF]
+            ^ tables[2][(x >> 16) & 0xFF] ^ tables[3][x >> 24])
+
+
+def _power_tables(count: int = 24) -> list[np.ndarray]:
+    """Byte tables of the step map raised to 1, 2, 4, ... 2^(count-1)."""
+    columns = _step_words(np.uint32(1) << np.arange(32, dtype=np.uint32))
+    out = []
+    for _ in range(count):
+        tables = _tables_of(columns)
+        out.append(tables)
+        columns = _apply(tables, columns)  # square the map
+    return out
+
+
+_POWERS = _power_tables()
+
+
+def xorshift_stream(states, n: int) -> tuple[np.ndarray, np.ndarray]:
+    """The next ``n`` draws of every generator in ``states`` (any shape, uint32): an array of
+    shape states.shape + (n,), and the states after them. No Python loop over the draws: the
+    block of draws k..2k-1 is the step map to the power k applied to draws 0..k-1."""
+    states = np.asarray(states, dtype=np.uint32)
+    if n <= 0:
+        return np.zeros(states.shape + (0,), dtype=np.uint32), states.copy()
+    if n > 1 << len(_POWERS):
+        raise ValueError(f"at most {1 << len(_POWERS)} draws at once, asked {n!r}")
+    out = np.empty(states.shape + (n,), dtype=np.uint32)
+    out[..., 0] = _step_words(states)
+    filled, k = 1, 0
+    while filled < n:
+        take = min(filled, n - filled)
+        out[..., filled:filled + take] = _apply(_POWERS[k], out[..., :take])
+        filled += take
+        k += 1
+    return out, out[..., -1].copy()
+
+
+# -- parameters --------------------------------------------------------------------------------------
+
+
+def _threshold(rate: float, scale: int, name: str) -> int:
+    if not 0.0 <= rate <= 1.0:
+        raise ValueError(f"{name} must be in [0, 1], got {rate!r}")
+    return int(round(rate * scale))
+
+
+@dataclass(frozen=True)
+class HardwareGAConfig:
+    """Parameters of the learning engine. Rates are per site as in ``ga.evolution.GAConfig`` and
+    become thresholds on 16-bit (8-bit for ``to_dc``) random fields."""
+
+    population: int = 500
+    tournament: int = 20
+    lanes: int = 8
+    crossover_rate: float = 0.5
+    literal_rate: float = 0.004  # per literal field (8 per row)
+    output_rate: float = 0.004  # per output bit (3 per row)
+    switch_rate: float = 0.01  # per row
+    literal_p: float = DEFAULT_LITERAL_P  # the initial law the literal mutation keeps
+
+    def __post_init__(self):
+        for name in ("population", "tournament", "lanes"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise ValueError(f"{name} must be a positive integer, got {value!r}")
+        if self.population < 2:
+            raise ValueError(f"the hardware GA needs a population of at least 2, got {self.population!r}")
+        if self.population > 1 << 16:
+            raise ValueError(f"population must be at most 65536, got {self.population!r}")
+        if self.lanes > 48:
+            raise ValueError(f"lanes must be at most 48 (fewer than a slot's cycles), got {self.lanes!r}")
+        for name in ("crossover_rate", "literal_rate", "output_rate", "switch_rate"):
+            _threshold(getattr(self, name), 1, name)
+        if not 0.0 <= self.literal_p < 1.0:
+            raise ValueError(f"literal_p must be in [0, 1), got {self.literal_p!r}")
+
+    @property
+    def cross_threshold(self) -> int:
+        return _threshold(self.crossover_rate, 1 << 16, "crossover_rate")
+
+    @property
+    def literal_threshold(self) -> int:
+        return _threshold(min(8 * self.literal_rate, 1.0), 1 << 16, "literal_rate")
+
+    @property
+    def output_threshold(self) -> int:
+        return _threshold(min(3 * self.output_rate, 1.0), 1 << 16, "output_rate")
+
+    @property
+    def switch_threshold(self) -> int:
+        return _threshold(self.switch_rate, 1 << 16, "switch_rate")
+
+    @property
+    def to_dc_threshold(self) -> int:
+        p = self.literal_p
+        return _threshold((1 - p) / (1 - p / 2), 1 << 8, "to_dc")
+
+    @property
+    def slots(self) -> int:
+        """Child slots per pass: ceil(population / lanes)."""
+        return -(-self.population // self.lanes)
+
+    def to_dict(self) -> dict:
+        return dataclasses.asdict(self)
+
+
+# -- the integer fitness ------------------------------------------------------------------------------
+
+
+def score(crashes, loops, distance, n_states: int) -> np.ndarray:
+    """10 D N x the SPEC fitness, as integers (int64): 5 D (N - c) + 4 D (N - l) + d."""
+    d = MAX_MOTION_DISTANCE_MM
+    c, l, dist = (np.asarray(v, dtype=np.int64) for v in (crashes, loops, distance))
+    return 5 * d * (n_states - c) + 4 * d * (n_states - l) + dist
+
+
+def first_best(scores) -> int:
+    """Index of the first highest score (the hardware's running best, strict >)."""
+    return int(np.argmax(np.asarray(scores)))
+
+
+# -- cycle count of the engine ---------------------------------------------------------------------
+
+
+def slot_cycles(n_states: int, tournament: int) -> int:
+    """Cycles of one child slot: selection (2T + 1 draws, one fitness read each) and breeding
+    (50 rows, one row-bank read each, plus the pipeline) must fit, and so must one evaluation
+    (N + 1 cycles, then one in Idle to take the next start)."""
+    return max(n_states + 2, 2 * tournament + 1 + N_ROWS + 3)
+
+
+def pass_cycles(n_states: int, config: HardwareGAConfig) -> int:
+    """Clock cycles of one pass of ``hdl.learner.Learner``: ``config.slots`` slots of breeding
+    (slot s's children evaluate during slot s + 1), one more slot for the last evaluations, and
+    the lanes' stagger (lane j runs j cycles behind lane 0) plus 2 to drain the last result."""
+    return (config.slots + 1) * slot_cycles(n_states, config.tournament) + config.lanes + 2
+
+
+def learn_cycles(n_states: int, config: HardwareGAConfig, generations: int) -> int:
+    """Cycles of ``learn(generations)`` from the start strobe to done (one cycle to begin)."""
+    return 1 + generations * pass_cycles(n_states, config)
+
+
+# -- the GA -----------------------------------------------------------------------------------------------
+
+
+def _mutate_rows(words, r0, r1, r2, config: HardwareGAConfig):
+    """The three row mutations of the module docstring on row words (any shape, uint32)."""
+    w = words.astype(np.uint32, copy=True)
+    u32 = np.uint32
+    # 1. literal
+    lit_event = (r0 >> u32(FIELD16_SHIFT)) < config.literal_threshold
+    shift = ((r0 >> u32(LITERAL_INDEX_SHIFT)) & u32(7)) * u32(2)
+    old = (w >> shift) & u32(3)
+    polarity = (r0 >> u32(POLARITY_BIT)) & u32(1)
+    to_dc = ((r0 >> u32(TO_DC_SHIFT)) & u32(0xFF)) < config.to_dc_threshold
+    new = np.where(old == DONT_CARE, np.where(polarity == 0, POSITIVE, NEGATIVE),
+                   np.where(old == CONTRADICTION, DONT_CARE,
+                            np.where(to_dc, DONT_CARE, np.where(old == POSITIVE, NEGATIVE, POSITIVE))))
+    w = np.where(lit_event, (w & ~(u32(3) << shift)) | (new.astype(np.uint32) << shift), w)
+    # 2. output bit
+    out_event = (r1 >> u32(FIELD16_SHIFT)) < config.output_threshold
+    bit = ((r1 & u32(CHOICE_MASK)) * u32(3)) >> u32(8)
+    w = np.where(out_event, w ^ (u32(1) << (u32(OUTPUT_SHIFT) + bit)), w)
+    # 3. row switch
+    sw_event = (r2 >> u32(FIELD16_SHIFT)) < config.switch_threshold
+    code = (((r2 & u32(CHOICE_MASK)) * u32(7)) >> u32(8)) + u32(1)
+    literals = w & u32(LITERAL_MASK)
+    on = (w & u32(OUTPUT_MASK)) != 0
+    w = np.where(sw_event, np.where(on, literals, literals | (code << u32(OUTPUT_SHIFT))), w)
+    return w.astype(ROW_DTYPE)
+
+
+class HardwareGA:
+    """The engine's state and its passes: population (P, 50), the last pass's scores (None until
+    a pass has run on this population) and the generator states (lanes, 4).
+
+    ``learn(model, generations)`` runs that many passes (the first after `load_population` only
+    evaluates) and returns the best of the last pass with its counts."""
+
+    def __init__(self, config: HardwareGAConfig, seed: int, population):
+        self.config = config
+        self.seed = int(seed)
+        self.generators = lane_seeds(self.seed, config.lanes)
+        self.load_population(population)
+        self.passes = 0
+        self.cycles = 0
+
+    def load_population(self, population) -> None:
+        pop = validate_rows(population)
+        if pop.shape != (self.config.population, N_ROWS):
+            raise ValueError(f"expected a population of shape ({self.config.population}, {N_ROWS}), "
+                             f"got {pop.shape!r}")
+        self.population = pop.copy()
+        self.scores: np.ndarray | None = None
+        self.counts: EvalResult | None = None
+
+    def _draws(self):
+        cfg = self.config
+        sel, self.generators[:, SEL] = xorshift_stream(
+            self.generators[:, SEL], cfg.slots * (2 * cfg.tournament + 1))
+        rows, self.generators[:, ROW0:] = xorshift_stream(self.generators[:, ROW0:], cfg.slots * N_ROWS)
+        sel = sel.reshape(cfg.lanes, cfg.slots, 2 * cfg.tournament + 1)
+        rows = rows.reshape(cfg.lanes, 3, cfg.slots, N_ROWS)
+        # lane-major (lane, slot) -> child order (slot, lane)
+        return sel.transpose(1, 0, 2).reshape(-1, sel.shape[-1]), rows.transpose(2, 0, 1, 3).reshape(
+            -1, 3, N_ROWS)
+
+    def breed(self) -> np.ndarray:
+        """The children of one pass (P, 50), drawing this pass's random words."""
+        cfg = self.config
+        P, T = cfg.population, cfg.tournament
+        sel, rows = self._draws()
+        sel, rows = sel[:P], rows[:P]
+        pop = self.population
+        if self.scores is None:
+            return pop.copy()
+        contestants = ((sel[:, :2 * T] >> np.uint32(FIELD16_SHIFT)).astype(np.int64) * P) >> 16
+        fit = self.scores[contestants]
+        a = contestants[np.arange(P), np.argmax(fit[:, :T], axis=1)]
+        b = contestants[np.arange(P), T + np.argmax(fit[:, T:], axis=1)]
+        cross = (sel[:, 2 * T] >> np.uint32(FIELD16_SHIFT)) < cfg.cross_threshold
+        r0, r1, r2 = rows[:, 0], rows[:, 1], rows[:, 2]
+        take_b = cross[:, None] & ((r0 >> np.uint32(TAKE_B_BIT)) & np.uint32(1) == 1)
+        base = np.where(take_b, pop[b], pop[a])
+        children = _mutate_rows(base, r0, r1, r2, cfg)
+        children[0] = pop[first_best(self.scores)]  # the elite
+        return children
+
+    def run_pass(self, model: WorldModel, reflex: bool = True, distance_rule: str = "covered") -> None:
+        children = self.breed()
+        counts = evaluate_population(children, model, reflex=reflex, distance_rule=distance_rule)
+        self.population = children
+        self.counts = counts
+        self.scores = score(counts.crashes, counts.loops, counts.distance, model.n_states)
+        self.passes += 1
+        self.cycles += pass_cycles(model.n_states, self.config)
+
+    def learn(self, model: WorldModel, generations: int, reflex: bool = True,
+              distance_rule: str = "covered"):
+        """``generations`` passes on ``model``. Returns (best rows (50,), (crashes, loops,
+        distance) of the best, cycles the engine takes for it)."""
+        if isinstance(generations, bool) or not isinstance(generations, int) or generations < 1:
+            raise ValueError(f"generations must be a positive integer, got {generations!r}")
+        for _ in range(generations):
+            self.run_pass(model, reflex, distance_rule)
+        self.cycles += 1
+        return self.best(), self.best_counts(), learn_cycles(model.n_states, self.config, generations)
+
+    @property
+    def best_index(self) -> int:
+        if self.scores is None:
+            raise ValueError("no pass has run on this population yet")
+        return first_best(self.scores)
+
+    def best(self) -> np.ndarray:
+        return self.population[self.best_index].copy()
+
+    def best_counts(self) -> tuple[int, int, int]:
+        return self.counts.row(self.best_index)
+
+
+def learn(world_model: WorldModel, population, generations: int, seed: int,
+          config: HardwareGAConfig | None = None, reflex: bool = True,
+          distance_rule: str = "covered"):
+    """One learning phase from scratch: a fresh engine seeded with ``seed`` holding
+    ``population`` (its first pass only evaluates). Returns (best rows, the last population,
+    counts (crashes, loops, distance) of the best)."""
+    pop = validate_rows(population)
+    config = config or HardwareGAConfig(population=pop.shape[0])
+    ga = HardwareGA(config, seed, pop)
+    best, counts, _ = ga.learn(world_model, generations, reflex, distance_rule)
+    return best, ga.population.copy(), counts
