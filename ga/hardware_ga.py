@@ -256,21 +256,24 @@ def first_best(scores) -> int:
 
 
 def slot_cycles(n_states: int, tournament: int) -> int:
-    """Cycles of one child slot: selection (2T + 1 draws, one fitness read each) and breeding
-    (50 rows, one row-bank read each, plus the pipeline) must fit, and so must one evaluation
-    (N + 1 cycles, then one in Idle to take the next start)."""
-    return max(n_states + 2, 2 * tournament + 1 + N_ROWS + 3)
+    """Cycles C of one child slot: selection (2T + 1 draws, one fitness read each) then breeding
+    (50 rows, one row-bank read each, one cycle of read latency; the last row may be written in
+    the cycle of the start) must fit before the start in the slot's last cycle, and the previous
+    evaluation must be over by then (the evaluator is ready again N + 2 cycles after the cycle
+    of its start): C = max(N + 2, 2T + 52)."""
+    return max(n_states + 2, 2 * tournament + 1 + N_ROWS + 1)
 
 
 def pass_cycles(n_states: int, config: HardwareGAConfig) -> int:
     """Clock cycles of one pass of ``hdl.learner.Learner``: ``config.slots`` slots of breeding
     (slot s's children evaluate during slot s + 1), one more slot for the last evaluations, and
-    the lanes' stagger (lane j runs j cycles behind lane 0) plus 2 to drain the last result."""
-    return (config.slots + 1) * slot_cycles(n_states, config.tournament) + config.lanes + 2
+    the lanes' stagger (lane j runs j cycles behind lane 0): L cycles of drain."""
+    return (config.slots + 1) * slot_cycles(n_states, config.tournament) + config.lanes
 
 
 def learn_cycles(n_states: int, config: HardwareGAConfig, generations: int) -> int:
-    """Cycles of ``learn(generations)`` from the start strobe to done (one cycle to begin)."""
+    """Clock edges of ``learn(generations)`` from the edge that samples the start strobe to the
+    one that raises done: the passes and one edge to leave Idle."""
     return 1 + generations * pass_cycles(n_states, config)
 
 

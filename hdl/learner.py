@@ -1,0 +1,534 @@
+"""The learning engine of SPEC section 12: the hardware GA and L evaluator lanes on one chip.
+
+Bit-exact with ``ga.hardware_ga`` (the algorithm, the random source, the draw schedule and the
+integer score are defined there; this module only says how the hardware does it).
+
+Datapath
+--------
+- ``bank[r]`` (r = 0..49): row r of every individual of both population buffers, one
+  ``Memory(shape=19, depth=2 * 2^ceil(log2 P))`` each, address ``Cat(index, buffer)``. One
+  synchronous read port and one write port per bank: in a pass the lanes read the parents from
+  the current buffer and write the children into the other one.
+- ``lane[j]`` (:class:`Lane`): an ``EvaluatorEHW`` (its own copy of the world-model RAM, state
+  set and trace engine: every model write goes to every lane, so the copies stay identical), the
+  lane's four xorshift32 generators, a replica of the score RAM (both buffers: the previous
+  pass's scores for its tournaments, this pass's being written), the tournament comparator and
+  the row mutation datapath.
+- A global slot counter (``tau`` in 0..C-1, ``slot`` in 0..S) whose value reaches lane j through
+  j registers: lane j runs j cycles behind lane 0. A lane reads bank r in the cycle it breeds its
+  row r, so two lanes never ask the same bank in one cycle (their rows differ by their lane
+  distance, less than C); the same holds for the bank writes one cycle later, for the score
+  writes and for the running best (one lane finishes per cycle, in the children's order).
+
+Timing of a slot (lane time tau; C = max(N + 2, 2T + 52), ``ga.hardware_ga.slot_cycles``)
+---------------------------------------------------------------------------------------
+- tau = 0 .. 2T: one ``SEL`` draw a cycle; draws 0 .. 2T-1 are contestants (score replica read,
+  compared one cycle later: first of tournament a, then of b), draw 2T the crossover decision.
+- tau = 2T+1 .. 2T+50: row r = tau - 2T - 1: the three row generators draw, the parent (a or b)
+  is chosen and bank r is read; one cycle later the mutated row goes to the lane's evaluator
+  (its shadow configuration) and to bank r of the next buffer.
+- tau = C - 1: start the evaluator on the child (its rows all in the shadow). It runs N + 1
+  cycles, during the next slot, while the next child is bred; its counts are scored and written
+  to every score replica (the next buffer) and into the running best when it finishes.
+
+A pass is S = ceil(P / L) slots of breeding, one slot more for the last evaluations and L cycles
+for the lanes behind: ``(S + 1) C + L`` cycles (``ga.hardware_ga.pass_cycles``, checked against
+this RTL in tests/test_learner.py). Between passes the buffers swap and the best of the pass
+becomes the next pass's elite.
+
+Host protocol (all in ``Idle``, ``ready`` high)
+------------------------------------------------
+World model: the ``model_*``, ``state_*`` and ``clear`` ports of ``EvaluatorEHW``, broadcast to
+every lane. Population: ``pop_index``, ``pop_row``, ``pop_data``, ``pop_we`` write a row of the
+current buffer (and mark the population unevaluated: the next pass only evaluates it);
+``pop_index``, ``pop_row`` read a row (``pop_rdata``, one cycle later). ``seed`` + ``seed_we``
+seed every generator (``ga.hardware_ga.lane_seeds``). ``generations`` + ``start``: run that many
+passes; ``done`` pulses at the end; ``best_*`` hold the best of the last pass (index in the current
+buffer, score, counts) and ``cycles`` the busy cycles of the last run.
+"""
+
+from __future__ import annotations
+
+from amaranth.hdl import Array, Cat, Const, Module, Mux, Signal
+from amaranth.lib import wiring
+from amaranth.lib.memory import Memory
+from amaranth.lib.wiring import In, Out
+
+from ga import hardware_ga as hg
+from ga.genome import N_ROWS, OUTPUT_SHIFT, ROW_BITS
+from ga.motions import MAX_MOTION_DISTANCE_MM, N_INPUTS, N_OUTPUTS
+from ga.operators import CONTRADICTION, DONT_CARE, NEGATIVE, POSITIVE
+from hdl.controller_ehw import row_addr_bits
+from hdl.evaluator_ehw import COUNT_BITS, DISTANCE_BITS, EvaluatorEHW
+
+TAU_BITS = 10  # C <= max(258, 2T + 52) < 1024 for T <= 480
+ROW_INDEX_BITS = row_addr_bits(N_ROWS)
+_MODEL_PORTS = ("model_state", "model_motion", "model_next", "model_crash", "model_valid",
+                "model_we", "state_value", "state_we", "clear", "reflex_en")
+
+
+def _xorshift(x):
+    """One xorshift32 step as a 32-bit expression (``ga.hardware_ga.xorshift32``)."""
+    x = (x ^ (x << 13))[:32]
+    x = (x ^ (x >> 17))[:32]
+    return (x ^ (x << 5))[:32]
+
+
+def index_bits(population: int) -> int:
+    return max(1, (population - 1).bit_length())
+
+
+def _model_port_shapes():
+    return {"model_state": N_INPUTS, "model_motion": N_OUTPUTS, "model_next": N_INPUTS,
+            "model_crash": 1, "model_valid": 1, "model_we": 1, "state_value": N_INPUTS,
+            "state_we": 1, "clear": 1, "reflex_en": 1}
+
+
+class Lane(wiring.Component):
+    """One evaluator lane with its generators, tournament and row mutation (see the module
+    docstring). ``index`` is the lane number j (its generators' salts).
+
+    Ports: ``tau``, ``slot``, ``active`` (the slot counter as lane j sees it), ``c_last`` (C - 1),
+    ``copy_mode``, ``cur_buf``, ``best_prev`` (pass constants), ``seed``/``seed_we``, the score
+    replica's write port ``score_*``, the model ports (to the evaluator), the bank request
+    ``rd_en``/``rd_row``/``rd_addr`` and the row ``data_row`` whose data is expected on
+    ``rd_data`` this cycle, the bank write ``wr_*``, and the result ``result_valid``,
+    ``result_index``, ``crashes``, ``loops``, ``distance``; ``n_states``, ``ready`` from the
+    evaluator.
+    """
+
+    def __init__(self, config: hg.HardwareGAConfig, index: int, distance_rule: str = "covered"):
+        self.config = config
+        self.index = index
+        self.distance_rule = distance_rule
+        ib = index_bits(config.population)
+        self.ib = ib
+        ports = {
+            "tau": In(TAU_BITS), "slot": In(range(config.slots + 1)), "active": In(1),
+            "c_last": In(TAU_BITS), "copy_mode": In(1), "cur_buf": In(1), "best_prev": In(ib),
+            "seed": In(32), "seed_we": In(1),
+            "score_addr": In(ib + 1), "score_data": In(hg.SCORE_BITS), "score_we": In(1),
+            "rd_en": Out(1), "rd_row": Out(ROW_INDEX_BITS), "rd_addr": Out(ib + 1),
+            "data_row": Out(ROW_INDEX_BITS), "rd_data": In(ROW_BITS),
+            "wr_en": Out(1), "wr_row": Out(ROW_INDEX_BITS), "wr_addr": Out(ib + 1),
+            "wr_data": Out(ROW_BITS),
+            "result_valid": Out(1), "result_index": Out(ib),
+            "crashes": Out(COUNT_BITS), "loops": Out(COUNT_BITS), "distance": Out(DISTANCE_BITS),
+            "n_states": Out(COUNT_BITS), "ready": Out(1),
+        }
+        ports.update({name: In(width) for name, width in _model_port_shapes().items()})
+        super().__init__(ports)
+
+    def elaborate(self, platform):
+        m = Module()
+        cfg, ib, T, P, L = self.config, self.ib, self.config.tournament, self.config.population, self.config.lanes
+        ev = m.submodules.evaluator = EvaluatorEHW(double_buffer=True, distance_rule=self.distance_rule)
+        for name in _MODEL_PORTS:
+            m.d.comb += getattr(ev, name).eq(getattr(self, name))
+        m.d.comb += [self.n_states.eq(ev.n_states), self.ready.eq(ev.ready)]
+
+        scores = m.submodules.scores = Memory(shape=hg.SCORE_BITS, depth=2 << ib, init=[])
+        score_wr = scores.write_port()
+        score_rd = scores.read_port()
+        m.d.comb += [score_wr.addr.eq(self.score_addr), score_wr.data.eq(self.score_data),
+                     score_wr.en.eq(self.score_we)]
+
+        # -- generators -----------------------------------------------------------------------
+        gens = [Signal(32, name=f"gen{g}") for g in range(hg.GENERATORS)]
+        draws = [Signal(32, name=f"draw{g}") for g in range(hg.GENERATORS)]
+        for g in range(hg.GENERATORS):
+            m.d.comb += draws[g].eq(_xorshift(gens[g]))
+            salted = Signal(32, name=f"salted{g}")
+            m.d.comb += salted.eq(self.seed ^ hg.seed_salt(self.index, g))
+            with m.If(self.seed_we):
+                m.d.sync += gens[g].eq(Mux(salted == 0, hg.SEED_FALLBACK, salted))
+
+        tau, slot = self.tau, self.slot
+        breeding_slot = self.active & (slot < cfg.slots)
+        sel_step = breeding_slot & (tau < 2 * T + 1)
+        row_start = 2 * T + 1
+        row_step = breeding_slot & (tau >= row_start) & (tau < row_start + N_ROWS)
+        with m.If(sel_step):
+            m.d.sync += gens[hg.SEL].eq(draws[hg.SEL])
+        with m.If(row_step):
+            m.d.sync += [gens[g].eq(draws[g]) for g in (hg.ROW0, hg.ROW1, hg.ROW2)]
+
+        child = Signal(range(cfg.slots * L + 1))
+        m.d.comb += child.eq(slot * L + self.index)
+        child_valid = child < P
+        elite = ~self.copy_mode & (child == 0)
+        plain = self.copy_mode | elite  # copied unchanged: no crossover, no mutation
+
+        # -- selection: tournaments a (draws 0..T-1) and b (T..2T-1), crossover (draw 2T) ----------
+        field = draws[hg.SEL][hg.FIELD16_SHIFT:]
+        contestant = Signal(ib)
+        m.d.comb += [
+            contestant.eq((field * P)[16:]),
+            score_rd.addr.eq(Cat(contestant, self.cur_buf)),  # the scores of the parents' buffer
+        ]
+        cont_r = Signal(ib)
+        k_r = Signal(TAU_BITS)  # the draw whose score is on score_rd.data
+        compare = Signal()
+        m.d.sync += [cont_r.eq(contestant), k_r.eq(tau), compare.eq(sel_step & (tau < 2 * T))]
+        par_a, par_b = Signal(ib), Signal(ib)
+        best_a, best_b = Signal(hg.SCORE_BITS), Signal(hg.SCORE_BITS)
+        cross = Signal()
+        got = score_rd.data
+        with m.If(compare):
+            with m.If(k_r < T):
+                with m.If((k_r == 0) | (got > best_a)):
+                    m.d.sync += [par_a.eq(cont_r), best_a.eq(got)]
+            with m.Else():
+                with m.If((k_r == T) | (got > best_b)):
+                    m.d.sync += [par_b.eq(cont_r), best_b.eq(got)]
+        with m.If(sel_step & (tau == 2 * T)):
+            m.d.sync += cross.eq(field < cfg.cross_threshold)
+
+        # -- breeding, stage 1: draw, choose the parent, read bank r --------------------------------
+        row = Signal(ROW_INDEX_BITS)
+        m.d.comb += row.eq(tau - row_start)
+        w0 = draws[hg.ROW0]
+        take_b = cross & ~plain & w0[hg.TAKE_B_BIT]
+        source = Mux(self.copy_mode, child, Mux(elite, self.best_prev, Mux(take_b, par_b, par_a)))
+        m.d.comb += [
+            self.rd_en.eq(row_step),
+            self.rd_row.eq(row),
+            self.rd_addr.eq(Cat(source[:ib], self.cur_buf)),
+        ]
+        r0, r1, r2 = Signal(32), Signal(32), Signal(32)
+        row_r = Signal(ROW_INDEX_BITS)
+        stage2 = Signal()
+        plain_r = Signal()
+        m.d.sync += [r0.eq(draws[hg.ROW0]), r1.eq(draws[hg.ROW1]), r2.eq(draws[hg.ROW2]),
+                     row_r.eq(row), stage2.eq(row_step), plain_r.eq(plain)]
+        m.d.comb += self.data_row.eq(row_r)
+
+        # -- breeding, stage 2: mutate the row (ga.hardware_ga._mutate_rows), write it -------------
+        word = self.rd_data
+        lit_event = ~plain_r & (r0[hg.FIELD16_SHIFT:] < cfg.literal_threshold)
+        lit_index = r0[hg.LITERAL_INDEX_SHIFT:hg.LITERAL_INDEX_SHIFT + 3]
+        polarity = r0[hg.POLARITY_BIT]
+        to_dc = r0[hg.TO_DC_SHIFT:hg.TO_DC_SHIFT + 8] < cfg.to_dc_threshold
+        fields = []
+        for i in range(N_INPUTS):
+            old = word[2 * i:2 * i + 2]
+            new = Signal(2, name=f"new_field{i}")
+            with m.Switch(old):
+                with m.Case(DONT_CARE):
+                    m.d.comb += new.eq(Mux(polarity, NEGATIVE, POSITIVE))
+                with m.Case(CONTRADICTION):
+                    m.d.comb += new.eq(DONT_CARE)
+                with m.Case(POSITIVE):
+                    m.d.comb += new.eq(Mux(to_dc, DONT_CARE, NEGATIVE))
+                with m.Case(NEGATIVE):
+                    m.d.comb += new.eq(Mux(to_dc, DONT_CARE, POSITIVE))
+            fields.append(Mux(lit_event & (lit_index == i), new, old))
+        outputs = Signal(N_OUTPUTS)
+        out_event = ~plain_r & (r1[hg.FIELD16_SHIFT:] < cfg.output_threshold)
+        out_bit = (r1[:8] * 3)[8:10]
+        m.d.comb += outputs.eq(word[OUTPUT_SHIFT:] ^ Cat(*[out_event & (out_bit == b) for b in range(N_OUTPUTS)]))
+        sw_event = ~plain_r & (r2[hg.FIELD16_SHIFT:] < cfg.switch_threshold)
+        code = ((r2[:8] * 7)[8:11] + 1)[:N_OUTPUTS]
+        switched = Mux(outputs != 0, 0, code)
+        mutated = Signal(ROW_BITS)
+        m.d.comb += mutated.eq(Cat(*fields, Mux(sw_event, switched, outputs)))
+        child_r = Signal.like(child)
+        child_valid_r = Signal()
+        m.d.sync += [child_r.eq(child), child_valid_r.eq(child_valid)]
+        m.d.comb += [
+            ev.row_addr.eq(row_r), ev.row_data.eq(mutated), ev.row_we.eq(stage2),
+            self.wr_en.eq(stage2 & child_valid_r), self.wr_row.eq(row_r),
+            self.wr_addr.eq(Cat(child_r[:ib], ~self.cur_buf)), self.wr_data.eq(mutated),
+        ]
+
+        # -- evaluation: start at the slot's last cycle, collect at done -----------------------------
+        eval_index = Signal(ib)
+        eval_valid = Signal()
+        start = breeding_slot & (tau == self.c_last) & child_valid
+        m.d.comb += ev.start.eq(start)
+        with m.If(start):
+            m.d.sync += [eval_index.eq(child[:ib]), eval_valid.eq(1)]
+        with m.Elif(ev.done):
+            m.d.sync += eval_valid.eq(0)
+        m.d.comb += [
+            self.result_valid.eq(ev.done & eval_valid), self.result_index.eq(eval_index),
+            self.crashes.eq(ev.crashes), self.loops.eq(ev.loops), self.distance.eq(ev.distance),
+        ]
+        return m
+
+
+class Learner(wiring.Component):
+    """The learning engine: ``config.lanes`` lanes, the population banks, the pass controller.
+
+    Parameters
+    ----------
+    config : ga.hardware_ga.HardwareGAConfig
+        Population, tournament, lanes and rates (constants of the circuit).
+    distance_rule : str
+        dist[a] of the lanes' evaluators (``ga.motions.DISTANCE_RULES``).
+
+    Ports: see the module docstring (host protocol).
+    """
+
+    def __init__(self, config: hg.HardwareGAConfig, distance_rule: str = "covered"):
+        if not isinstance(config, hg.HardwareGAConfig):
+            raise TypeError(f"config must be a HardwareGAConfig, got {config!r}")
+        self.config = config
+        self.distance_rule = distance_rule
+        ib = self.ib = index_bits(config.population)
+        ports = {
+            "pop_index": In(ib), "pop_row": In(ROW_INDEX_BITS), "pop_data": In(ROW_BITS),
+            "pop_we": In(1), "pop_rdata": Out(ROW_BITS),
+            "seed": In(32), "seed_we": In(1),
+            "generations": In(16), "start": In(1),
+            "ready": Out(1), "busy": Out(1), "done": Out(1), "evaluated": Out(1),
+            "best_index": Out(ib), "best_score": Out(hg.SCORE_BITS),
+            "best_crashes": Out(COUNT_BITS), "best_loops": Out(COUNT_BITS),
+            "best_distance": Out(DISTANCE_BITS),
+            "cycles": Out(32), "n_states": Out(COUNT_BITS),
+        }
+        ports.update({name: In(width) for name, width in _model_port_shapes().items()})
+        super().__init__(ports)
+
+    def elaborate(self, platform):
+        m = Module()
+        cfg, ib, L, S = self.config, self.ib, self.config.lanes, self.config.slots
+        lanes = [Lane(cfg, j, self.distance_rule) for j in range(L)]
+        for j, lane in enumerate(lanes):
+            m.submodules[f"lane{j}"] = lane
+            for name in _MODEL_PORTS:
+                m.d.comb += getattr(lane, name).eq(getattr(self, name))
+        banks = []
+        for r in range(N_ROWS):
+            mem = Memory(shape=ROW_BITS, depth=2 << ib, init=[])
+            m.submodules[f"bank{r}"] = mem
+            banks.append((mem.read_port(), mem.write_port()))
+
+        n = lanes[0].n_states
+        m.d.comb += self.n_states.eq(n)
+        c_last = Signal(TAU_BITS)
+        m.d.comb += c_last.eq(Mux(n + 2 > 2 * cfg.tournament + 52, n + 1, 2 * cfg.tournament + 51))
+
+        # -- pass constants ----------------------------------------------------------------------
+        cur_buf = Signal()
+        best_prev = Signal(ib)
+        running = Signal()
+        for lane in lanes:
+            m.d.comb += [lane.c_last.eq(c_last), lane.copy_mode.eq(~self.evaluated),
+                         lane.cur_buf.eq(cur_buf), lane.best_prev.eq(best_prev),
+                         lane.seed.eq(self.seed), lane.seed_we.eq(self.seed_we & self.ready)]
+
+        # -- the slot counter and its delay line (lane j sees it j cycles late) ------------------------
+        tau = Signal(TAU_BITS)
+        slot = Signal(range(S + 1))
+        active = Signal()
+        stage = (tau, slot, active)
+        for j, lane in enumerate(lanes):
+            m.d.comb += [lane.tau.eq(stage[0]), lane.slot.eq(stage[1]), lane.active.eq(stage[2])]
+            delayed = (Signal(TAU_BITS, name=f"tau_d{j + 1}"), Signal(range(S + 1), name=f"slot_d{j + 1}"),
+                       Signal(name=f"active_d{j + 1}"))
+            m.d.sync += [d.eq(s) for d, s in zip(delayed, stage)]
+            stage = delayed
+
+        # -- banks: the lanes while running, the host otherwise -----------------------------------------
+        host_row_r = Signal(ROW_INDEX_BITS)
+        m.d.sync += host_row_r.eq(self.pop_row)
+        bank_data = Array(rd.data for rd, _ in banks)
+        m.d.comb += self.pop_rdata.eq(bank_data[host_row_r])
+        for r, (rd, wr) in enumerate(banks):
+            rd_addr = Const(0, ib + 1)
+            wr_en, wr_addr, wr_data = Const(0, 1), Const(0, ib + 1), Const(0, ROW_BITS)
+            for lane in lanes:
+                asks = lane.rd_en & (lane.rd_row == r)
+                rd_addr = rd_addr | Mux(asks, lane.rd_addr, 0)
+                writes = lane.wr_en & (lane.wr_row == r)
+                wr_en = wr_en | writes
+                wr_addr = wr_addr | Mux(writes, lane.wr_addr, 0)
+                wr_data = wr_data | Mux(writes, lane.wr_data, 0)
+            host = ~running
+            host_we = self.pop_we & (self.pop_row == r) & self.ready
+            m.d.comb += [
+                rd.addr.eq(Mux(host, Cat(self.pop_index, cur_buf), rd_addr)),
+                wr.addr.eq(Mux(host, Cat(self.pop_index, cur_buf), wr_addr)),
+                wr.data.eq(Mux(host, self.pop_data, wr_data)),
+                wr.en.eq(Mux(host, host_we, wr_en)),
+            ]
+        for lane in lanes:
+            m.d.comb += lane.rd_data.eq(bank_data[lane.data_row])
+
+        # -- results: score, score replicas, running best -------------------------------------------
+        d = MAX_MOTION_DISTANCE_MM
+        res_valid = Const(0, 1)
+        res_index, res_c, res_l, res_d = Const(0, ib), Const(0, COUNT_BITS), Const(0, COUNT_BITS), Const(0, DISTANCE_BITS)
+        for lane in lanes:
+            v = lane.result_valid
+            res_valid = res_valid | v
+            res_index = res_index | Mux(v, lane.result_index, 0)
+            res_c = res_c | Mux(v, lane.crashes, 0)
+            res_l = res_l | Mux(v, lane.loops, 0)
+            res_d = res_d | Mux(v, lane.distance, 0)
+        res_score = Signal(hg.SCORE_BITS)
+        m.d.comb += res_score.eq(5 * d * (n - res_c) + 4 * d * (n - res_l) + res_d)
+        for lane in lanes:
+            m.d.comb += [lane.score_addr.eq(Cat(res_index, ~cur_buf)), lane.score_data.eq(res_score),
+                         lane.score_we.eq(res_valid)]
+        with m.If(res_valid & ((res_index == 0) | (res_score > self.best_score))):
+            m.d.sync += [self.best_index.eq(res_index), self.best_score.eq(res_score),
+                         self.best_crashes.eq(res_c), self.best_loops.eq(res_l),
+                         self.best_distance.eq(res_d)]
+
+        # -- pass controller ----------------------------------------------------------------------
+        lanes_ready = Const(1, 1)
+        for lane in lanes:
+            lanes_ready = lanes_ready & lane.ready
+        passes_left = Signal(16)
+        drain = Signal(range(L + 1))
+        with m.If(self.ready & self.pop_we):
+            m.d.sync += self.evaluated.eq(0)
+        m.d.sync += self.done.eq(0)
+        with m.If(running):
+            m.d.sync += self.cycles.eq(self.cycles + 1)
+        with m.FSM():
+            with m.State("Idle"):
+                m.d.comb += self.ready.eq(lanes_ready)
+                with m.If(self.start & lanes_ready & (self.generations != 0)):
+                    m.d.sync += [passes_left.eq(self.generations), tau.eq(0), slot.eq(0),
+                                 active.eq(1), self.cycles.eq(0)]
+                    m.next = "Run"
+            with m.State("Run"):
+                m.d.comb += [self.busy.eq(1), running.eq(1)]
+                with m.If(tau == c_last):
+                    m.d.sync += tau.eq(0)
+                    with m.If(slot == S):
+                        m.d.sync += [active.eq(0), drain.eq(0)]
+                        m.next = "Drain"
+                    with m.Else():
+                        m.d.sync += slot.eq(slot + 1)
+                with m.Else():
+                    m.d.sync += tau.eq(tau + 1)
+            with m.State("Drain"):
+                # the lanes behind lane 0 finish their last slot
+                m.d.comb += [self.busy.eq(1), running.eq(1)]
+                m.d.sync += drain.eq(drain + 1)
+                with m.If(drain == L - 1):
+                    m.d.sync += [cur_buf.eq(~cur_buf), best_prev.eq(self.best_index),
+                                 self.evaluated.eq(1), passes_left.eq(passes_left - 1)]
+                    with m.If(passes_left == 1):
+                        m.d.sync += self.done.eq(1)
+                        m.next = "Idle"
+                    with m.Else():
+                        m.d.sync += [tau.eq(0), slot.eq(0), active.eq(1)]
+                        m.next = "Run"
+        return m
+
+
+# -- host side, for Amaranth's simulator -----------------------------------------------------------
+
+
+class LearnerSimHost:
+    """The host side of the learner's ports in Amaranth's simulator (testbench context ``ctx``)."""
+
+    def __init__(self, ctx, dut: Learner):
+        from hdl.evaluator_ehw import EvaluatorSimHost
+
+        self.ctx, self.dut = ctx, dut
+        self.model_host = EvaluatorSimHost(ctx, dut)  # the same model/state ports and ready
+        self.cycle = 0
+
+    async def tick(self):
+        await self.ctx.tick()
+        self.cycle += 1
+        self.model_host.cycle = self.cycle
+
+    async def wait_ready(self):
+        while not self.ctx.get(self.dut.ready):
+            await self.tick()
+
+    async def write_model(self, model):
+        await self.model_host.write_model(model)
+        self.cycle = self.model_host.cycle
+
+    async def observe(self, model, state, motion, next_state, crashed):
+        await self.model_host.observe(model, state, motion, next_state, crashed)
+        self.cycle = self.model_host.cycle
+
+    async def seed(self, seed: int):
+        self.ctx.set(self.dut.seed, int(seed))
+        self.ctx.set(self.dut.seed_we, 1)
+        await self.tick()
+        self.ctx.set(self.dut.seed_we, 0)
+
+    async def write_population(self, population):
+        ctx, dut = self.ctx, self.dut
+        for i, genome in enumerate(population):
+            for r, word in enumerate(genome):
+                ctx.set(dut.pop_index, i)
+                ctx.set(dut.pop_row, r)
+                ctx.set(dut.pop_data, int(word))
+                ctx.set(dut.pop_we, 1)
+                await self.tick()
+        ctx.set(dut.pop_we, 0)
+
+    async def read_genome(self, index: int) -> list[int]:
+        ctx, dut = self.ctx, self.dut
+        rows = []
+        for r in range(N_ROWS):  # the edge samples the address; the data is there after it
+            ctx.set(dut.pop_index, index)
+            ctx.set(dut.pop_row, r)
+            await self.tick()
+            rows.append(ctx.get(dut.pop_rdata))
+        return rows
+
+    async def learn(self, generations: int, reflex: bool = True):
+        """Run ``generations`` passes. Returns (best index, (crashes, loops, distance), best score,
+        cycles register, clock edges from the start strobe to done)."""
+        ctx, dut = self.ctx, self.dut
+        ctx.set(dut.reflex_en, int(reflex))
+        ctx.set(dut.generations, generations)
+        ctx.set(dut.start, 1)
+        first = self.cycle
+        await self.tick()
+        ctx.set(dut.start, 0)
+        while not ctx.get(dut.done):
+            await self.tick()
+        counts = (ctx.get(dut.best_crashes), ctx.get(dut.best_loops), ctx.get(dut.best_distance))
+        return (ctx.get(dut.best_index), counts, ctx.get(dut.best_score), ctx.get(dut.cycles),
+                self.cycle - first)
+
+
+def simulate_learning(config: hg.HardwareGAConfig, seed: int, population, phases,
+                      read_population: bool = True, distance_rule: str = "covered"):
+    """Run a Learner in Amaranth's simulator: seed it, write ``population``, then for each
+    ``(observations, generations)`` of ``phases`` apply the observations (a list of (state,
+    motion, next_state, crashed), host mirror ``ga.world_model.WorldModel``) and learn. Returns
+    one dict per phase: best index, counts, score, cycles, edges, population (if read)."""
+    from amaranth.sim import Simulator
+
+    from ga.world_model import WorldModel
+
+    dut = Learner(config, distance_rule)
+    out = []
+
+    async def testbench(ctx):
+        host = LearnerSimHost(ctx, dut)
+        await host.wait_ready()
+        await host.seed(seed)
+        await host.write_population(population)
+        mirror = WorldModel()
+        for observations, generations in phases:
+            for obs in observations:
+                await host.observe(mirror, *obs)
+            best, counts, score, cycles, edges = await host.learn(generations)
+            record = {"best_index": best, "counts": counts, "score": score, "cycles": cycles,
+                      "edges": edges, "n_states": mirror.n_states}
+            if read_population:
+                record["population"] = [await host.read_genome(i) for i in range(config.population)]
+            else:
+                record["best"] = await host.read_genome(best)
+            out.append(record)
+
+    sim = Simulator(dut)
+    sim.add_clock(1e-8)
+    sim.add_testbench(testbench)
+    sim.run()
+    return out
