@@ -44,6 +44,12 @@ Child ``i`` is bred and evaluated by lane ``i % lanes`` in slot ``i // lanes``.
 - Every child is evaluated on the world model (``ga.evaluator``: the counts are the evaluator
   board's) and scored with :func:`score`.
 
+The escape (the on-line run's download after a time-out or loop, ``cosim.online``): given a
+blamed (state, motion) with an obstacle bit in the state, the engine also tracks the first child
+of highest score whose array motion in that state (``ga.operators.motion_in_state``: the rows are
+checked one per cycle as they stream into the lane) differs from the blamed motion; `learn`
+returns that child when there is one.
+
 Fitness as an integer
 ---------------------
 ``score = 5 D (N - crashes) + 4 D (N - loops) + distance`` with D = max dist[a] = 50 mm, which is
@@ -64,8 +70,9 @@ import numpy as np
 
 from ga.evaluator import EvalResult, evaluate_population
 from ga.genome import LITERAL_MASK, N_ROWS, OUTPUT_MASK, OUTPUT_SHIFT, ROW_DTYPE, validate_rows
-from ga.motions import MAX_MOTION_DISTANCE_MM
+from ga.motions import MAX_MOTION_DISTANCE_MM, OBSTACLE_MASK
 from ga.operators import DEFAULT_LITERAL_P, CONTRADICTION, DONT_CARE, NEGATIVE, POSITIVE
+from ga.truth_table import truth_tables
 from ga.world_model import WorldModel
 
 # -- the random source -----------------------------------------------------------------------------
@@ -322,6 +329,8 @@ class HardwareGA:
         self.passes = 0
         self.cycles = 0
 
+    escape_index: int | None = None  # the escape child of the last pass (learn's avoid)
+
     def load_population(self, population) -> None:
         pop = validate_rows(population)
         if pop.shape != (self.config.population, N_ROWS):
@@ -363,25 +372,43 @@ class HardwareGA:
         children[0] = pop[first_best(self.scores)]  # the elite
         return children
 
-    def run_pass(self, model: WorldModel, reflex: bool = True, distance_rule: str = "covered") -> None:
+    def run_pass(self, model: WorldModel, reflex: bool = True, distance_rule: str = "covered",
+                 avoid: tuple[int, int] | None = None) -> None:
         children = self.breed()
         counts = evaluate_population(children, model, reflex=reflex, distance_rule=distance_rule)
         self.population = children
         self.counts = counts
         self.scores = score(counts.crashes, counts.loops, counts.distance, model.n_states)
+        self.escape_index = None
+        if avoid is not None:
+            state, motion = avoid
+            eligible = truth_tables(children, reflex=False)[:, state] != motion
+            if eligible.any():
+                self.escape_index = int(np.flatnonzero(eligible)[np.argmax(self.scores[eligible])])
         self.passes += 1
         self.cycles += pass_cycles(model.n_states, self.config)
 
     def learn(self, model: WorldModel, generations: int, reflex: bool = True,
-              distance_rule: str = "covered"):
-        """``generations`` passes on ``model``. Returns (best rows (50,), (crashes, loops,
-        distance) of the best, cycles the engine takes for it)."""
+              distance_rule: str = "covered", avoid: tuple[int, int] | None = None):
+        """``generations`` passes on ``model``. Returns (the download (50,), its (crashes, loops,
+        distance), the cycles the engine takes). The download is the best of the last pass, or
+        with ``avoid`` = (state, motion) (an obstacle state) the escape child if there is one."""
         if isinstance(generations, bool) or not isinstance(generations, int) or generations < 1:
             raise ValueError(f"generations must be a positive integer, got {generations!r}")
+        if avoid is not None and not (int(avoid[0]) & OBSTACLE_MASK):
+            raise ValueError(f"the escape needs a state with an obstacle bit, got {avoid!r}")
         for _ in range(generations):
-            self.run_pass(model, reflex, distance_rule)
+            self.run_pass(model, reflex, distance_rule, avoid)
         self.cycles += 1
-        return self.best(), self.best_counts(), learn_cycles(model.n_states, self.config, generations)
+        index = self.download_index
+        return (self.population[index].copy(), self.counts.row(index),
+                learn_cycles(model.n_states, self.config, generations))
+
+    @property
+    def download_index(self) -> int:
+        """The escape child of the last pass if there is one, else its best."""
+        escape = getattr(self, "escape_index", None)
+        return self.best_index if escape is None else escape
 
     @property
     def best_index(self) -> int:
@@ -398,12 +425,12 @@ class HardwareGA:
 
 def learn(world_model: WorldModel, population, generations: int, seed: int,
           config: HardwareGAConfig | None = None, reflex: bool = True,
-          distance_rule: str = "covered"):
+          distance_rule: str = "covered", avoid: tuple[int, int] | None = None):
     """One learning phase from scratch: a fresh engine seeded with ``seed`` holding
     ``population`` (its first pass only evaluates). Returns (best rows, the last population,
-    counts (crashes, loops, distance) of the best)."""
+    counts (crashes, loops, distance) of the best; with ``avoid``, of the escape child)."""
     pop = validate_rows(population)
     config = config or HardwareGAConfig(population=pop.shape[0])
     ga = HardwareGA(config, seed, pop)
-    best, counts, _ = ga.learn(world_model, generations, reflex, distance_rule)
+    best, counts, _ = ga.learn(world_model, generations, reflex, distance_rule, avoid)
     return best, ga.population.copy(), counts

@@ -44,7 +44,10 @@ current buffer (and mark the population unevaluated: the next pass only evaluate
 ``pop_index``, ``pop_row`` read a row (``pop_rdata``, one cycle later). ``seed`` + ``seed_we``
 seed every generator (``ga.hardware_ga.lane_seeds``). ``generations`` + ``start``: run that many
 passes; ``done`` pulses at the end; ``best_*`` hold the best of the last pass (index in the current
-buffer, score, counts) and ``cycles`` the busy cycles of the last run.
+buffer, score, counts) and ``cycles`` the busy cycles of the last run. With ``avoid_en`` (and
+``avoid_state``, ``avoid_motion`` held during the run) ``escape_*`` hold the first child of
+highest score whose array motion in ``avoid_state`` is not ``avoid_motion`` (``escape_found``:
+there is one); each lane ORs the outputs of the rows firing in that state as they stream in.
 """
 
 from __future__ import annotations
@@ -115,6 +118,8 @@ class Lane(wiring.Component):
             "result_valid": Out(1), "result_index": Out(ib),
             "crashes": Out(COUNT_BITS), "loops": Out(COUNT_BITS), "distance": Out(DISTANCE_BITS),
             "n_states": Out(COUNT_BITS), "ready": Out(1),
+            "avoid_en": In(1), "avoid_state": In(N_INPUTS), "avoid_motion": In(N_OUTPUTS),
+            "result_eligible": Out(1),
         }
         ports.update({name: In(width) for name, width in _model_port_shapes().items()})
         super().__init__(ports)
@@ -241,17 +246,29 @@ class Lane(wiring.Component):
             self.wr_addr.eq(Cat(child_r[:ib], ~self.cur_buf)), self.wr_data.eq(mutated),
         ]
 
+        # -- the escape: the child's array motion in avoid_state, one row per cycle as it streams -----
+        violated = Cat(*[Cat(~self.avoid_state[i], self.avoid_state[i]) for i in range(N_INPUTS)])
+        fires = (mutated[:OUTPUT_SHIFT] & violated) == 0
+        motion_acc = Signal(N_OUTPUTS)
+        motion_next = Signal(N_OUTPUTS)
+        m.d.comb += motion_next.eq(motion_acc)
+        with m.If(stage2):
+            m.d.comb += motion_next.eq(Mux(row_r == 0, 0, motion_acc) | Mux(fires, mutated[OUTPUT_SHIFT:], 0))
+        m.d.sync += motion_acc.eq(motion_next)
+
         # -- evaluation: start at the slot's last cycle, collect at done -----------------------------
         eval_index = Signal(ib)
         eval_valid = Signal()
+        eval_motion = Signal(N_OUTPUTS)
         start = breeding_slot & (tau == self.c_last) & child_valid
         m.d.comb += ev.start.eq(start)
         with m.If(start):
-            m.d.sync += [eval_index.eq(child[:ib]), eval_valid.eq(1)]
+            m.d.sync += [eval_index.eq(child[:ib]), eval_valid.eq(1), eval_motion.eq(motion_next)]
         with m.Elif(ev.done):
             m.d.sync += eval_valid.eq(0)
         m.d.comb += [
             self.result_valid.eq(ev.done & eval_valid), self.result_index.eq(eval_index),
+            self.result_eligible.eq(self.avoid_en & (eval_motion != self.avoid_motion)),
             self.crashes.eq(ev.crashes), self.loops.eq(ev.loops), self.distance.eq(ev.distance),
         ]
         return m
@@ -286,6 +303,10 @@ class Learner(wiring.Component):
             "best_crashes": Out(COUNT_BITS), "best_loops": Out(COUNT_BITS),
             "best_distance": Out(DISTANCE_BITS),
             "cycles": Out(32), "n_states": Out(COUNT_BITS),
+            "avoid_en": In(1), "avoid_state": In(N_INPUTS), "avoid_motion": In(N_OUTPUTS),
+            "escape_found": Out(1), "escape_index": Out(ib), "escape_score": Out(hg.SCORE_BITS),
+            "escape_crashes": Out(COUNT_BITS), "escape_loops": Out(COUNT_BITS),
+            "escape_distance": Out(DISTANCE_BITS),
         }
         ports.update({name: In(width) for name, width in _model_port_shapes().items()})
         super().__init__(ports)
@@ -316,7 +337,9 @@ class Learner(wiring.Component):
         for lane in lanes:
             m.d.comb += [lane.c_last.eq(c_last), lane.copy_mode.eq(~self.evaluated),
                          lane.cur_buf.eq(cur_buf), lane.best_prev.eq(best_prev),
-                         lane.seed.eq(self.seed), lane.seed_we.eq(self.seed_we & self.ready)]
+                         lane.seed.eq(self.seed), lane.seed_we.eq(self.seed_we & self.ready),
+                         lane.avoid_en.eq(self.avoid_en), lane.avoid_state.eq(self.avoid_state),
+                         lane.avoid_motion.eq(self.avoid_motion)]
 
         # -- the slot counter and its delay line (lane j sees it j cycles late) ------------------------
         tau = Signal(TAU_BITS)
@@ -358,11 +381,12 @@ class Learner(wiring.Component):
 
         # -- results: score, score replicas, running best -------------------------------------------
         d = MAX_MOTION_DISTANCE_MM
-        res_valid = Const(0, 1)
+        res_valid, res_eligible = Const(0, 1), Const(0, 1)
         res_index, res_c, res_l, res_d = Const(0, ib), Const(0, COUNT_BITS), Const(0, COUNT_BITS), Const(0, DISTANCE_BITS)
         for lane in lanes:
             v = lane.result_valid
             res_valid = res_valid | v
+            res_eligible = res_eligible | (v & lane.result_eligible)
             res_index = res_index | Mux(v, lane.result_index, 0)
             res_c = res_c | Mux(v, lane.crashes, 0)
             res_l = res_l | Mux(v, lane.loops, 0)
@@ -376,6 +400,13 @@ class Learner(wiring.Component):
             m.d.sync += [self.best_index.eq(res_index), self.best_score.eq(res_score),
                          self.best_crashes.eq(res_c), self.best_loops.eq(res_l),
                          self.best_distance.eq(res_d)]
+        pass_start = Signal()
+        with m.If(pass_start):
+            m.d.sync += self.escape_found.eq(0)
+        with m.Elif(res_eligible & (~self.escape_found | (res_score > self.escape_score))):
+            m.d.sync += [self.escape_found.eq(1), self.escape_index.eq(res_index),
+                         self.escape_score.eq(res_score), self.escape_crashes.eq(res_c),
+                         self.escape_loops.eq(res_l), self.escape_distance.eq(res_d)]
 
         # -- pass controller ----------------------------------------------------------------------
         lanes_ready = Const(1, 1)
@@ -392,6 +423,7 @@ class Learner(wiring.Component):
             with m.State("Idle"):
                 m.d.comb += self.ready.eq(lanes_ready)
                 with m.If(self.start & lanes_ready & (self.generations != 0)):
+                    m.d.comb += pass_start.eq(1)
                     m.d.sync += [passes_left.eq(self.generations), tau.eq(0), slot.eq(0),
                                  active.eq(1), self.cycles.eq(0)]
                     m.next = "Run"
@@ -417,6 +449,7 @@ class Learner(wiring.Component):
                         m.d.sync += self.done.eq(1)
                         m.next = "Idle"
                     with m.Else():
+                        m.d.comb += pass_start.eq(1)
                         m.d.sync += [tau.eq(0), slot.eq(0), active.eq(1)]
                         m.next = "Run"
         return m
@@ -479,11 +512,16 @@ class LearnerSimHost:
             rows.append(ctx.get(dut.pop_rdata))
         return rows
 
-    async def learn(self, generations: int, reflex: bool = True):
-        """Run ``generations`` passes. Returns (best index, (crashes, loops, distance), best score,
-        cycles register, clock edges from the start strobe to done)."""
+    async def learn(self, generations: int, reflex: bool = True, avoid=None):
+        """Run ``generations`` passes. Returns (download index, (crashes, loops, distance), score,
+        cycles register, clock edges from the start strobe to done); the download is the escape
+        child when ``avoid`` = (state, motion) is given and one exists, else the best."""
         ctx, dut = self.ctx, self.dut
         ctx.set(dut.reflex_en, int(reflex))
+        ctx.set(dut.avoid_en, int(avoid is not None))
+        if avoid is not None:
+            ctx.set(dut.avoid_state, int(avoid[0]))
+            ctx.set(dut.avoid_motion, int(avoid[1]))
         ctx.set(dut.generations, generations)
         ctx.set(dut.start, 1)
         first = self.cycle
@@ -491,17 +529,19 @@ class LearnerSimHost:
         ctx.set(dut.start, 0)
         while not ctx.get(dut.done):
             await self.tick()
-        counts = (ctx.get(dut.best_crashes), ctx.get(dut.best_loops), ctx.get(dut.best_distance))
-        return (ctx.get(dut.best_index), counts, ctx.get(dut.best_score), ctx.get(dut.cycles),
-                self.cycle - first)
+        kind = "escape" if avoid is not None and ctx.get(dut.escape_found) else "best"
+        get = lambda name: ctx.get(getattr(dut, f"{kind}_{name}"))  # noqa: E731
+        counts = (get("crashes"), get("loops"), get("distance"))
+        return get("index"), counts, get("score"), ctx.get(dut.cycles), self.cycle - first
 
 
 def simulate_learning(config: hg.HardwareGAConfig, seed: int, population, phases,
                       read_population: bool = True, distance_rule: str = "covered"):
     """Run a Learner in Amaranth's simulator: seed it, write ``population``, then for each
-    ``(observations, generations)`` of ``phases`` apply the observations (a list of (state,
-    motion, next_state, crashed), host mirror ``ga.world_model.WorldModel``) and learn. Returns
-    one dict per phase: best index, counts, score, cycles, edges, population (if read)."""
+    ``(observations, generations[, avoid])`` of ``phases`` apply the observations (a list of
+    (state, motion, next_state, crashed), host mirror ``ga.world_model.WorldModel``) and learn.
+    Returns one dict per phase: download index, counts, score, cycles, edges, population (if
+    read)."""
     from amaranth.sim import Simulator
 
     from ga.world_model import WorldModel
@@ -515,10 +555,10 @@ def simulate_learning(config: hg.HardwareGAConfig, seed: int, population, phases
         await host.seed(seed)
         await host.write_population(population)
         mirror = WorldModel()
-        for observations, generations in phases:
+        for observations, generations, *avoid in phases:
             for obs in observations:
                 await host.observe(mirror, *obs)
-            best, counts, score, cycles, edges = await host.learn(generations)
+            best, counts, score, cycles, edges = await host.learn(generations, avoid=avoid[0] if avoid else None)
             record = {"best_index": best, "counts": counts, "score": score, "cycles": cycles,
                       "edges": edges, "n_states": mirror.n_states}
             if read_population:

