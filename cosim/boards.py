@@ -181,3 +181,85 @@ def make_boards(backend: str = "reference", *, reflex: bool = True, **options):
             f"use --backend reference"
         )
     return _FACTORIES[backend](reflex=reflex, **options)
+
+
+# --------------------------------------------------------------------------------------------
+# The learning board (SPEC section 12): the GA and the evaluator lanes on one chip. The host sends
+# observations and "learn G generations"; only the download comes back.
+
+
+@dataclass(frozen=True)
+class LearnResult:
+    """What ``LearningBoard.learn`` returns: the controller to download and its counts."""
+
+    rows: np.ndarray  # (50,) the download
+    crashes: int
+    loops: int
+    distance: int
+    cycles: int  # the engine's clock cycles for this learn (its exact count on every backend)
+    escaped: bool = False  # the download is the escape child (not the best of the last pass)
+
+
+class LearningBoard(Protocol):
+    """The learning engine: a world model, a population, the hardware GA and its lanes."""
+
+    cycles: int  # clock cycles of every learn so far
+
+    def load_population(self, population: np.ndarray) -> None:
+        """Write the population (P, 50); the next learn's first generation only evaluates it."""
+
+    def observe(self, state: int, motion: int, next_state: int, crashed: bool) -> None:
+        """Apply one observed transition (SPEC section 7 update rule) to the board's model."""
+
+    def learn(self, generations: int, avoid: tuple[int, int] | None = None) -> LearnResult:
+        """Run ``generations`` generations; the download: the best of the last, or with
+        ``avoid`` = (state, motion) the fittest whose motion in ``state`` is another."""
+
+
+class ReferenceLearningBoard:
+    """The learning board as ``ga.hardware_ga.HardwareGA`` plus ``ga.world_model.WorldModel``."""
+
+    def __init__(self, config, seed: int, population, reflex: bool = True,
+                 distance_rule: str = "covered"):
+        from ga.hardware_ga import HardwareGA
+        from ga.motions import motion_distances
+        from ga.world_model import WorldModel
+
+        motion_distances(distance_rule)
+        self.config = config
+        self.reflex, self.distance_rule = bool(reflex), distance_rule
+        self.model = WorldModel()
+        self.ga = HardwareGA(config, seed, population)
+        self.cycles = 0
+        self.time_s = 0.0  # CPU time of the reference's learns
+
+    def load_population(self, population) -> None:
+        self.ga.load_population(population)
+
+    def observe(self, state: int, motion: int, next_state: int, crashed: bool) -> None:
+        self.model.observe(int(state), int(motion), int(next_state), bool(crashed))
+
+    def learn(self, generations: int, avoid: tuple[int, int] | None = None) -> LearnResult:
+        t0 = time.process_time()
+        rows, counts, cycles = self.ga.learn(self.model, generations, self.reflex, self.distance_rule, avoid)
+        self.time_s += time.process_time() - t0
+        self.cycles += cycles
+        return LearnResult(rows, *counts, cycles=cycles,
+                           escaped=self.ga.download_index != self.ga.best_index)
+
+
+LEARNING_BACKENDS = ("reference", "amaranth")
+
+
+def make_learning_board(backend: str, config, seed: int, population, *, reflex: bool = True,
+                        distance_rule: str = "covered"):
+    """A learning board of the named backend holding ``population``, its generators seeded
+    with ``seed`` (32 bits), and an empty world model."""
+    if backend == "reference":
+        return ReferenceLearningBoard(config, seed, population, reflex, distance_rule)
+    if backend == "amaranth":
+        from cosim.amaranth_learning import AmaranthLearningBoard
+
+        return AmaranthLearningBoard(config, seed, population, reflex, distance_rule)
+    raise BackendUnavailable(
+        f"no learning board for backend {backend!r} yet; --ga hardware runs on {LEARNING_BACKENDS!r}")

@@ -48,7 +48,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cosim.boards import BACKENDS, make_boards
+from cosim.boards import BACKENDS, BackendUnavailable, make_boards
 from cosim.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
 from ga.evaluator import fitness as model_fitness
 from ga.evolution import GAConfig, GeneticAlgorithm
@@ -191,6 +191,11 @@ class OnlineConfig:
     # noisy observation then no longer erases a loop seen fifty times (docs/online.md).
     model_update: str = "most_recent"
     max_interactions: int = 100_000  # end the lifetime there even short of n_targets (0: no limit)
+    # The GA of the learning phases: "host" (ga.evolution on the host, the evaluator board
+    # evaluates) or "hardware" (the learning board: ga.hardware_ga / hdl.learner with `lanes`
+    # evaluator lanes, SPEC section 12; cosim.learning_phase)
+    ga: str = "host"
+    lanes: int = 8
     # adaptation: blind IR bit `blind_bit` (stuck at 0) once `blind_after_target` targets are reached
     blind_bit: int | None = None
     blind_after_target: int | None = None
@@ -213,6 +218,12 @@ class OnlineConfig:
         if (self.blind_bit is None) != (self.blind_after_target is None):
             raise ValueError("blind_bit and blind_after_target go together, got "
                              f"{self.blind_bit!r} and {self.blind_after_target!r}")
+        if self.ga not in ("host", "hardware"):
+            raise ValueError(f"ga must be 'host' or 'hardware', got {self.ga!r}")
+        if self.ga == "hardware":
+            from cosim.learning_phase import check_hardware_options
+
+            check_hardware_options(self)
         if self.blind_bit is not None and self.blind_bit not in range(6):
             raise ValueError(f"blind_bit must be an IR bit 0..5, got {self.blind_bit!r}")
 
@@ -524,6 +535,11 @@ class OnlineRun:
             for i, rows in enumerate(mutants):
                 self.ga.replace(base + i, rows)
             record["targeted"] = len(mutants)
+        if cfg.ga == "hardware":  # the whole phase on the learning board
+            from cosim.learning_phase import learn_on_chip
+
+            self.phases.append(learn_on_chip(self, record, reason, state, motion))
+            return
         n_states = self.mirror.n_states
         penalised = self._leg_blames() if cfg.loop_penalty else ()
         for _ in range(cfg.generations_per_phase):
@@ -870,6 +886,18 @@ def make_run(config: OnlineConfig, backend: str = "reference", out: Path | None 
     controller, evaluator = make_boards(backend, reflex=config.reflex, distance_rule=config.distance_rule)
     ckpt = None if out is None else Path(out) / "checkpoint.json"
     run = OnlineRun(config, controller, evaluator, checkpoint=ckpt, progress=progress, backend=backend)
+    if config.ga == "hardware":
+        # The learning board takes the evaluator board's place (observe, and learn instead of
+        # evaluate); it holds the host GA's initial population, so the first driver is the same.
+        from cosim.boards import make_learning_board
+        from cosim.learning_phase import hardware_ga_config, hardware_seed
+
+        if resume:
+            raise CheckpointError("--resume is not available with --ga hardware (the engine's state "
+                                  "is not in the checkpoint)")
+        run.evaluator = make_learning_board(backend, hardware_ga_config(config), hardware_seed(config.seed),
+                                            run.ga.ask(), reflex=config.reflex,
+                                            distance_rule=config.distance_rule)
     if resume:
         if ckpt is None:
             raise CheckpointError("--resume needs an output directory holding checkpoint.json")
@@ -993,6 +1021,7 @@ def config_from_args(args) -> OnlineConfig:
         mark_loops=args.mark_loops, model_update=args.model_update,
         loop_cycles=args.loop_cycles, download=args.download, distance_rule=args.distance,
         blind_bit=args.blind_bit, blind_after_target=args.blind_after_target,
+        ga=args.ga, lanes=args.lanes,
     )
 
 
@@ -1072,6 +1101,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--model-update", choices=("most_recent", "most_frequent"), default=d.model_update,
                    help="world-model update: most_recent = SPEC section 7; most_frequent = option")
     p.add_argument("--mark-limit", type=int, default=d.mark_limit)
+    p.add_argument("--ga", choices=("host", "hardware"), default=d.ga,
+                   help="the learning phases' GA: the host's NumPy GA (default) or the learning "
+                        "board's hardware GA (SPEC section 12)")
+    p.add_argument("--lanes", type=int, default=d.lanes, help="evaluator lanes of --ga hardware")
     p.add_argument("--no-plots", action="store_true")
     p.add_argument("--no-progress", action="store_true")
     return p
@@ -1079,7 +1112,15 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
-    config = config_from_args(args)
+    try:
+        config = config_from_args(args)
+    except ValueError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    if args.backend == "cocotb" and config.ga == "hardware":
+        print("error: --ga hardware runs on --backend reference or amaranth (no cocotb learning "
+              "board yet)", file=sys.stderr)
+        return 2
     if args.backend == "cocotb":
         # The loop must run inside the cocotb simulation: that module launches it (in a thread).
         from cosim.cocotb_backend import main_from_args
@@ -1087,7 +1128,7 @@ def main(argv=None) -> int:
         return main_from_args(args, config)
     try:
         run = make_run(config, args.backend, args.out, resume=args.resume, progress=not args.no_progress)
-    except CheckpointError as exc:
+    except (CheckpointError, BackendUnavailable) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     run.run()

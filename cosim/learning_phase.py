@@ -1,0 +1,71 @@
+"""The on-line run's learning phase on the learning board (``--ga hardware``, SPEC section 12).
+
+With the host GA (``--ga host``, the default) a learning phase is ``cosim.online.OnlineRun._learn``:
+the NumPy GA breeds, the evaluator board evaluates every population. With ``--ga hardware`` the
+learning board (``cosim.boards.LearningBoard``) does both on the chip and only the download comes
+back: ``learn_on_chip`` is that phase. It keeps the default on-line options' behaviour: after a
+time-out or loop in an obstacle state the download is the fittest individual whose motion in the
+blamed state differs from the failed one (the escape, computed on the chip). Options that need the
+whole population on the host (targeted mutants, the loop penalty, the other download and escape
+variants) are refused with the hardware GA (``check_hardware_options``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ga.evaluator import EvalResult, fitness
+from ga.motions import OBSTACLE_MASK
+
+# OnlineConfig fields (and their host-GA-only values) that --ga hardware cannot honour.
+_HOST_ONLY = {"targeted": 0, "loop_penalty": 0.0, "escape_spread": "off", "escape_memory": False,
+              "download": "first", "escape_rewrite": 0, "escape_credit": False}
+
+
+def check_hardware_options(config) -> None:
+    """Raise ValueError if ``config`` (an OnlineConfig with ga="hardware") asks for an option
+    that needs the population on the host."""
+    bad = [f"{name}={getattr(config, name)!r}" for name, plain in _HOST_ONLY.items()
+           if getattr(config, name) != plain]
+    if bad:
+        raise ValueError(f"--ga hardware keeps the population on the chip; these options need the "
+                         f"host GA: {', '.join(bad)}")
+
+
+def hardware_ga_config(config):
+    """The learning engine's parameters from an OnlineConfig."""
+    from ga.hardware_ga import HardwareGAConfig
+
+    return HardwareGAConfig(population=config.population, tournament=config.tournament,
+                            lanes=config.lanes, crossover_rate=config.crossover_rate,
+                            literal_rate=config.literal_rate, output_rate=config.output_rate,
+                            switch_rate=config.switch_rate)
+
+
+def hardware_seed(seed: int) -> int:
+    """The engine's 32-bit seed for the run's seed (its own stream: the host GA's is untouched)."""
+    return int(np.random.SeedSequence([int(seed), 14]).generate_state(1)[0])
+
+
+def learn_on_chip(run, record: dict, reason: str, state: int, motion: int) -> dict:
+    """One learning phase on ``run.evaluator`` (a LearningBoard); returns the phase record."""
+    cfg = run.config
+    avoid = None
+    if cfg.escape and reason in ("timeout", "loop") and state & OBSTACLE_MASK:
+        avoid = (int(state), int(motion))
+    result = run.evaluator.learn(cfg.generations_per_phase, avoid)
+    run.generations += cfg.generations_per_phase
+    run.genetic_operations += cfg.generations_per_phase * cfg.population
+    run.best_rows = result.rows.copy()
+    run.controller.load(result.rows)
+    counts = EvalResult(*(np.array([v]) for v in (result.crashes, result.loops, result.distance)))
+    new_motion = int(run.controller.motion(state))
+    record.update({
+        "best_fitness": round(float(fitness(counts, run.mirror.n_states)[0]), 6),
+        "best_crashes": result.crashes, "best_loops": result.loops, "best_distance": result.distance,
+        "new_motion": new_motion, "changed": new_motion != int(motion),
+        "engine_cycles": result.cycles,
+    })
+    if result.escaped:
+        record["escaped"] = True
+    return record
