@@ -39,7 +39,7 @@ def hardware_ga_config(config):
     return HardwareGAConfig(population=config.population, tournament=config.tournament,
                             lanes=config.lanes, crossover_rate=config.crossover_rate,
                             literal_rate=config.literal_rate, output_rate=config.output_rate,
-                            switch_rate=config.switch_rate)
+                            switch_rate=config.switch_rate, replace_rate=config.replace_rate)
 
 
 def hardware_seed(seed: int) -> int:

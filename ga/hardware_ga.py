@@ -8,9 +8,9 @@ stays as it is; this one is designed so the hardware needs few resources:
 
 Random source
 -------------
-Four xorshift32 generators per lane (Marsaglia's 13/17/5 triple: a register and three shift-XORs,
-one step per cycle): ``SEL`` draws the tournament contestants and the crossover decision, ``ROW0``,
-``ROW1``, ``ROW2`` one word each per bred row. Every generator steps on a fixed schedule, whatever
+Seven xorshift32 generators per lane (Marsaglia's 13/17/5 triple: a register and three
+shift-XORs, one step per cycle): ``SEL`` draws the tournament contestants and the crossover
+decision, ``ROW0`` .. ``ROW5`` one word each per bred row. Every generator steps on a fixed schedule, whatever
 the draws decide: per child slot, ``SEL`` steps 2T + 1 times and each row generator 50 times, in
 every lane and every slot (a slot with no child, past the end of the population, still steps).
 So the k-th draw of a generator is its k-th state after the seed, and the reference computes a
@@ -39,8 +39,11 @@ Child ``i`` is bred and evaluated by lane ``i % lanes`` in slot ``i // lanes``.
     2. output: with ``output_threshold`` (3 x the per-bit rate), output bit ``(ROW1[0:8] * 3) >> 8``
        flips;
     3. switch: with ``switch_threshold``, an on row goes off (outputs cleared, literals kept), an
-       off row on with outputs ``((ROW2[0:8] * 7) >> 8) + 1``.
-  The row-replacement operator of the host GA (``replace_rate``) has no hardware counterpart.
+       off row on with outputs ``((ROW2[0:8] * 7) >> 8) + 1``;
+    4. replace: with ``replace_threshold`` (``ROW3`` field), the row becomes a fresh on term
+       (``ga.operators.random_rows`` with off_p = 0): literal i is connected when byte i of
+       ``ROW4`` (i < 4) or ``ROW5`` (i >= 4) is below ``connect_threshold`` (literal_p), as x_i
+       when bit 8 + i of ``ROW3`` is 0, else NOT x_i; outputs ``((ROW3[0:8] * 7) >> 8) + 1``.
 - Every child is evaluated on the world model (``ga.evaluator``: the counts are the evaluator
   board's) and scored with :func:`score`.
 
@@ -78,8 +81,9 @@ from ga.world_model import WorldModel
 # -- the random source -----------------------------------------------------------------------------
 
 MASK32 = 0xFFFF_FFFF
-SEL, ROW0, ROW1, ROW2 = range(4)  # the generators of one lane
-GENERATORS = 4
+SEL, ROW0, ROW1, ROW2, ROW3, ROW4, ROW5 = range(7)  # the generators of one lane
+GENERATORS = 7
+ROW_GENERATORS = (ROW0, ROW1, ROW2, ROW3, ROW4, ROW5)
 SEED_FALLBACK = 0x9E37_79B9  # a generator's state must not be 0
 _SALT_STEP = 0x6C07_8965  # odd: the salts of distinct (lane, generator) are distinct
 
@@ -89,7 +93,8 @@ TAKE_B_BIT = 0  # ROW0
 LITERAL_INDEX_SHIFT = 1  # ROW0 bits 1..3
 POLARITY_BIT = 4  # ROW0
 TO_DC_SHIFT = 8  # ROW0 bits 8..15
-CHOICE_MASK = 0xFF  # ROW1, ROW2 bits 0..7
+CHOICE_MASK = 0xFF  # ROW1, ROW2, ROW3 bits 0..7
+FRESH_POLARITY_SHIFT = 8  # ROW3 bits 8..15: polarity of fresh literal i (0: x_i)
 SCORE_BITS = 17
 
 
@@ -196,6 +201,7 @@ class HardwareGAConfig:
     literal_rate: float = 0.004  # per literal field (8 per row)
     output_rate: float = 0.004  # per output bit (3 per row)
     switch_rate: float = 0.01  # per row
+    replace_rate: float = 0.005  # per row: a fresh term
     literal_p: float = DEFAULT_LITERAL_P  # the initial law the literal mutation keeps
 
     def __post_init__(self):
@@ -209,7 +215,7 @@ class HardwareGAConfig:
             raise ValueError(f"population must be at most 65536, got {self.population!r}")
         if self.lanes > 48:
             raise ValueError(f"lanes must be at most 48 (fewer than a slot's cycles), got {self.lanes!r}")
-        for name in ("crossover_rate", "literal_rate", "output_rate", "switch_rate"):
+        for name in ("crossover_rate", "literal_rate", "output_rate", "switch_rate", "replace_rate"):
             _threshold(getattr(self, name), 1, name)
         if not 0.0 <= self.literal_p < 1.0:
             raise ValueError(f"literal_p must be in [0, 1), got {self.literal_p!r}")
@@ -229,6 +235,14 @@ class HardwareGAConfig:
     @property
     def switch_threshold(self) -> int:
         return _threshold(self.switch_rate, 1 << 16, "switch_rate")
+
+    @property
+    def replace_threshold(self) -> int:
+        return _threshold(self.replace_rate, 1 << 16, "replace_rate")
+
+    @property
+    def connect_threshold(self) -> int:
+        return _threshold(self.literal_p, 1 << 8, "literal_p")
 
     @property
     def to_dc_threshold(self) -> int:
@@ -287,8 +301,8 @@ def learn_cycles(n_states: int, config: HardwareGAConfig, generations: int) -> i
 # -- the GA -----------------------------------------------------------------------------------------------
 
 
-def _mutate_rows(words, r0, r1, r2, config: HardwareGAConfig):
-    """The three row mutations of the module docstring on row words (any shape, uint32)."""
+def _mutate_rows(words, r0, r1, r2, r3, r4, r5, config: HardwareGAConfig):
+    """The four row mutations of the module docstring on row words (any shape, uint32)."""
     w = words.astype(np.uint32, copy=True)
     u32 = np.uint32
     # 1. literal
@@ -311,6 +325,15 @@ def _mutate_rows(words, r0, r1, r2, config: HardwareGAConfig):
     literals = w & u32(LITERAL_MASK)
     on = (w & u32(OUTPUT_MASK)) != 0
     w = np.where(sw_event, np.where(on, literals, literals | (code << u32(OUTPUT_SHIFT))), w)
+    # 4. row replacement by a fresh on term
+    rep_event = (r3 >> u32(FIELD16_SHIFT)) < config.replace_threshold
+    fresh = ((((r3 & u32(CHOICE_MASK)) * u32(7)) >> u32(8)) + u32(1)) << u32(OUTPUT_SHIFT)
+    for i in range(8):
+        source = r4 if i < 4 else r5
+        connected = ((source >> u32(8 * (i % 4))) & u32(0xFF)) < config.connect_threshold
+        negative = (r3 >> u32(FRESH_POLARITY_SHIFT + i)) & u32(1)
+        fresh = fresh | np.where(connected, (u32(POSITIVE) + negative) << u32(2 * i), u32(0))
+    w = np.where(rep_event, fresh, w)
     return w.astype(ROW_DTYPE)
 
 
@@ -346,10 +369,10 @@ class HardwareGA:
             self.generators[:, SEL], cfg.slots * (2 * cfg.tournament + 1))
         rows, self.generators[:, ROW0:] = xorshift_stream(self.generators[:, ROW0:], cfg.slots * N_ROWS)
         sel = sel.reshape(cfg.lanes, cfg.slots, 2 * cfg.tournament + 1)
-        rows = rows.reshape(cfg.lanes, 3, cfg.slots, N_ROWS)
+        rows = rows.reshape(cfg.lanes, len(ROW_GENERATORS), cfg.slots, N_ROWS)
         # lane-major (lane, slot) -> child order (slot, lane)
         return sel.transpose(1, 0, 2).reshape(-1, sel.shape[-1]), rows.transpose(2, 0, 1, 3).reshape(
-            -1, 3, N_ROWS)
+            -1, len(ROW_GENERATORS), N_ROWS)
 
     def breed(self) -> np.ndarray:
         """The children of one pass (P, 50), drawing this pass's random words."""
@@ -365,10 +388,10 @@ class HardwareGA:
         a = contestants[np.arange(P), np.argmax(fit[:, :T], axis=1)]
         b = contestants[np.arange(P), T + np.argmax(fit[:, T:], axis=1)]
         cross = (sel[:, 2 * T] >> np.uint32(FIELD16_SHIFT)) < cfg.cross_threshold
-        r0, r1, r2 = rows[:, 0], rows[:, 1], rows[:, 2]
+        r0 = rows[:, 0]
         take_b = cross[:, None] & ((r0 >> np.uint32(TAKE_B_BIT)) & np.uint32(1) == 1)
         base = np.where(take_b, pop[b], pop[a])
-        children = _mutate_rows(base, r0, r1, r2, cfg)
+        children = _mutate_rows(base, *(rows[:, k] for k in range(len(ROW_GENERATORS))), cfg)
         children[0] = pop[first_best(self.scores)]  # the elite
         return children
 

@@ -24,7 +24,7 @@ Timing of a slot (lane time tau; C = max(N + 2, 2T + 52), ``ga.hardware_ga.slot_
 ---------------------------------------------------------------------------------------
 - tau = 0 .. 2T: one ``SEL`` draw a cycle; draws 0 .. 2T-1 are contestants (score replica read,
   compared one cycle later: first of tournament a, then of b), draw 2T the crossover decision.
-- tau = 2T+1 .. 2T+50: row r = tau - 2T - 1: the three row generators draw, the parent (a or b)
+- tau = 2T+1 .. 2T+50: row r = tau - 2T - 1: the six row generators draw, the parent (a or b)
   is chosen and bank r is read; one cycle later the mutated row goes to the lane's evaluator
   (its shadow configuration) and to bank r of the next buffer.
 - tau = C - 1: start the evaluator on the child (its rows all in the shadow). It runs N + 1
@@ -156,7 +156,7 @@ class Lane(wiring.Component):
         with m.If(sel_step):
             m.d.sync += gens[hg.SEL].eq(draws[hg.SEL])
         with m.If(row_step):
-            m.d.sync += [gens[g].eq(draws[g]) for g in (hg.ROW0, hg.ROW1, hg.ROW2)]
+            m.d.sync += [gens[g].eq(draws[g]) for g in hg.ROW_GENERATORS]
 
         child = Signal(range(cfg.slots * L + 1))
         m.d.comb += child.eq(slot * L + self.index)
@@ -200,12 +200,12 @@ class Lane(wiring.Component):
             self.rd_row.eq(row),
             self.rd_addr.eq(Cat(source[:ib], self.cur_buf)),
         ]
-        r0, r1, r2 = Signal(32), Signal(32), Signal(32)
+        r0, r1, r2, r3, r4, r5 = (Signal(32, name=f"r{k}") for k in range(len(hg.ROW_GENERATORS)))
         row_r = Signal(ROW_INDEX_BITS)
         stage2 = Signal()
         plain_r = Signal()
-        m.d.sync += [r0.eq(draws[hg.ROW0]), r1.eq(draws[hg.ROW1]), r2.eq(draws[hg.ROW2]),
-                     row_r.eq(row), stage2.eq(row_step), plain_r.eq(plain)]
+        m.d.sync += [r.eq(draws[g]) for r, g in zip((r0, r1, r2, r3, r4, r5), hg.ROW_GENERATORS)]
+        m.d.sync += [row_r.eq(row), stage2.eq(row_step), plain_r.eq(plain)]
         m.d.comb += self.data_row.eq(row_r)
 
         # -- breeding, stage 2: mutate the row (ga.hardware_ga._mutate_rows), write it -------------
@@ -235,8 +235,15 @@ class Lane(wiring.Component):
         sw_event = ~plain_r & (r2[hg.FIELD16_SHIFT:] < cfg.switch_threshold)
         code = ((r2[:8] * 7)[8:11] + 1)[:N_OUTPUTS]
         switched = Mux(outputs != 0, 0, code)
+        rep_event = ~plain_r & (r3[hg.FIELD16_SHIFT:] < cfg.replace_threshold)
+        fresh_fields = []
+        for i in range(N_INPUTS):
+            byte = (r4 if i < 4 else r5)[8 * (i % 4):8 * (i % 4) + 8]
+            negative = r3[hg.FRESH_POLARITY_SHIFT + i]
+            fresh_fields.append(Mux(byte < cfg.connect_threshold, Cat(~negative, negative), DONT_CARE))
+        fresh = Cat(*fresh_fields, ((r3[:8] * 7)[8:11] + 1)[:N_OUTPUTS])
         mutated = Signal(ROW_BITS)
-        m.d.comb += mutated.eq(Cat(*fields, Mux(sw_event, switched, outputs)))
+        m.d.comb += mutated.eq(Mux(rep_event, fresh, Cat(*fields, Mux(sw_event, switched, outputs))))
         child_r = Signal.like(child)
         child_valid_r = Signal()
         m.d.sync += [child_r.eq(child), child_valid_r.eq(child_valid)]

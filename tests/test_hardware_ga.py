@@ -82,9 +82,9 @@ def _breed_python(ga: hg.HardwareGA) -> np.ndarray:
                 draws.append(gens[j][hg.SEL])
             row_words = []
             for _ in range(N_ROWS):
-                for g in (hg.ROW0, hg.ROW1, hg.ROW2):
+                for g in hg.ROW_GENERATORS:
                     gens[j][g] = hg.xorshift32(gens[j][g])
-                row_words.append([gens[j][g] for g in (hg.ROW0, hg.ROW1, hg.ROW2)])
+                row_words.append([gens[j][g] for g in hg.ROW_GENERATORS])
             if i >= P:
                 continue
             if ga.scores is None:
@@ -103,7 +103,7 @@ def _breed_python(ga: hg.HardwareGA) -> np.ndarray:
                         win = k
                 winners.append(win)
             cross = (draws[2 * T] >> 16) < cfg.cross_threshold
-            for r, (r0, r1, r2) in enumerate(row_words):
+            for r, (r0, r1, r2, r3, r4, r5) in enumerate(row_words):
                 parent = winners[1] if cross and r0 & 1 else winners[0]
                 word = int(ga.population[parent, r])
                 if (r0 >> 16) < cfg.literal_threshold:
@@ -121,6 +121,12 @@ def _breed_python(ga: hg.HardwareGA) -> np.ndarray:
                 if (r2 >> 16) < cfg.switch_threshold:
                     literals = word & 0xFFFF
                     word = literals if word >> 16 else literals | (((((r2 & 0xFF) * 7) >> 8) + 1) << 16)
+                if (r3 >> 16) < cfg.replace_threshold:
+                    word = ((((r3 & 0xFF) * 7) >> 8) + 1) << 16
+                    for f in range(8):
+                        byte = ((r4 if f < 4 else r5) >> (8 * (f % 4))) & 0xFF
+                        if byte < cfg.connect_threshold:
+                            word |= (1 + ((r3 >> (8 + f)) & 1)) << (2 * f)
                 children[i, r] = word
     return children
 
@@ -129,7 +135,7 @@ def _breed_python(ga: hg.HardwareGA) -> np.ndarray:
 def test_vectorised_passes_equal_the_per_cycle_model(lanes, population, tournament):
     # high rates so that every operator fires often
     cfg = hg.HardwareGAConfig(population=population, tournament=tournament, lanes=lanes,
-                              literal_rate=0.05, output_rate=0.1, switch_rate=0.2)
+                              literal_rate=0.05, output_rate=0.1, switch_rate=0.2, replace_rate=0.1)
     model = _model(1)
     pop = random_population(np.random.default_rng(2), population)
     ga = hg.HardwareGA(cfg, seed=77, population=pop)
@@ -174,6 +180,7 @@ def test_config_checks():
         hg.HardwareGAConfig(literal_rate=1.5)
     cfg = hg.HardwareGAConfig()
     assert cfg.literal_threshold == round(0.032 * 65536) and cfg.to_dc_threshold == 112
+    assert cfg.replace_threshold == 328 and cfg.connect_threshold == 184
 
 
 def test_escape_download_is_the_fittest_child_with_another_motion():

@@ -46,9 +46,9 @@ def reference_phases(config, seed, population, phases):
 # operator acts; a second phase after more observations continues from the first.
 CASES = [
     (hg.HardwareGAConfig(population=7, tournament=2, lanes=3, literal_rate=0.05, output_rate=0.1,
-                         switch_rate=0.2), 123, observations(1, 40, 64), [(25, 2), (40, 1)]),
+                         switch_rate=0.2, replace_rate=0.1), 123, observations(1, 40, 64), [(25, 2), (40, 1)]),
     (hg.HardwareGAConfig(population=5, tournament=1, lanes=2, literal_rate=0.05, output_rate=0.1,
-                         switch_rate=0.2), 7, observations(2, 200, 256), [(200, 2)]),
+                         switch_rate=0.2, replace_rate=0.1), 7, observations(2, 200, 256), [(200, 2)]),
 ]
 
 

@@ -1,0 +1,123 @@
+"""One learning phase (10 generations, population 500, tournament 20): the host GA in NumPy on
+one core against the learning engine on the chip (SPEC section 12, issue 14).
+
+- ``numpy_learning_phase_s``: the host GA of the on-line run (``ga.evolution``: breeding) with
+  the NumPy truth tables and evaluator (``ga.evaluator.evaluate_population``), CPU time of one
+  process (NumPy runs these single-threaded), best of 3, per stored world model.
+- ``onchip_learning_phase_s``: the engine's exact cycle count (``ga.hardware_ga.learn_cycles``,
+  checked against the RTL in tests/test_learner.py) at the Fmax of a placed and routed build of
+  the engine with ``onchip_lanes`` lanes (``onchip_fmax_source`` says which build).
+- ``onchip_learning_speedup_vs_numpy``: the ratio, per model.
+- ``hardware_ga_reference_phase_s``: the same phase in ``ga.hardware_ga`` (the bit-exact NumPy
+  model of the engine), for scale.
+
+World models (``benchmarks/data/world_model_*.json``): taken from the on-line lifetime of seed 1
+(reference backend, default options) when the model first reached 100 and 170 states
+(``benchmarks/data/README.md``).
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+DATA = Path(__file__).resolve().parent / "data"
+GENERATIONS = 10
+POPULATION = 500
+TOURNAMENT = 20
+MAX_LUT_FRACTION = 0.80  # the issue's budget: at most 80 % of the ECP5-85F's LUTs
+
+
+def models():
+    from ga.world_model import WorldModel
+
+    return {path.stem.removeprefix("world_model_"): WorldModel.load(path)
+            for path in sorted(DATA.glob("world_model_*.json"))}
+
+
+def host_phase_s(model, repeats: int = 3) -> float:
+    from cosim.online import OnlineConfig
+    from ga.evaluator import evaluate_population, fitness
+    from ga.evolution import GeneticAlgorithm
+
+    config = OnlineConfig(population=POPULATION, tournament=TOURNAMENT).ga_config()
+    times = []
+    for r in range(repeats):
+        ga = GeneticAlgorithm(config, np.random.default_rng(r))
+        t0 = time.process_time()
+        for _ in range(GENERATIONS):
+            pop = ga.ask()
+            counts = evaluate_population(pop, model)
+            ga.tell(fitness(counts, model.n_states))
+        times.append(time.process_time() - t0)
+    return min(times)
+
+
+def reference_phase_s(model, lanes: int, repeats: int = 3) -> float:
+    from ga import hardware_ga as hg
+    from ga.operators import random_population
+
+    config = hg.HardwareGAConfig(population=POPULATION, tournament=TOURNAMENT, lanes=lanes)
+    times = []
+    for r in range(repeats):
+        ga = hg.HardwareGA(config, r + 1, random_population(np.random.default_rng(r), POPULATION))
+        ga.run_pass(model)  # the population evaluated once: every timed pass breeds
+        t0 = time.process_time()
+        ga.learn(model, GENERATIONS)
+        times.append(time.process_time() - t0)
+    return min(times)
+
+
+def fpga_build() -> tuple[dict | None, str]:
+    """The learner build to take the Fmax from: results/fpga.json's ``ulx3s-learner`` target,
+    else the largest build in results/fpga_learner.json within the LUT budget, else the
+    recorded measurement benchmarks/data/fpga_learner.json (see its ``how``)."""
+    fpga = Path("results/fpga.json")
+    if fpga.exists():
+        target = json.loads(fpga.read_text()).get("targets", {}).get("ulx3s-learner")
+        if target and target.get("fmax_mhz") and target.get("lanes"):
+            return target, "results/fpga.json (make bitstream, ulx3s-learner)"
+    for path, name in ((Path("results/fpga_learner.json"), "results/fpga_learner.json (python -m benchmarks.fpga_learner)"),
+                       (DATA / "fpga_learner.json", "benchmarks/data/fpga_learner.json (recorded run of benchmarks.fpga_learner)")):
+        if path.exists():
+            builds = [b for b in json.loads(path.read_text()).values()
+                      if b.get("population") == POPULATION and b.get("tournament") == TOURNAMENT
+                      and b.get("lut_fraction", 1.0) <= MAX_LUT_FRACTION]
+            if builds:
+                return max(builds, key=lambda b: b["lanes"]), name
+    return None, "no learner build measured (run python -m benchmarks.fpga_learner)"
+
+
+def run() -> dict:
+    from ga import hardware_ga as hg
+
+    build, source = fpga_build()
+    out: dict = {"onchip_fmax_source": source}
+    lanes = build["lanes"] if build else 8
+    if build:
+        out.update({"onchip_lanes": lanes, "onchip_fmax_mhz": build["fmax_mhz"],
+                    "onchip_luts": build["luts"], "onchip_lut_fraction": build["lut_fraction"]})
+    config = hg.HardwareGAConfig(population=POPULATION, tournament=TOURNAMENT, lanes=lanes)
+    numpy_s, onchip_s, cycles, speedup, ref_s = {}, {}, {}, {}, {}
+    for name, model in models().items():
+        key = f"{name}_states"
+        numpy_s[key] = round(host_phase_s(model), 4)
+        ref_s[key] = round(reference_phase_s(model, lanes), 4)
+        n = hg.learn_cycles(model.n_states, config, GENERATIONS)
+        cycles[key] = n
+        if build:
+            onchip_s[key] = round(n / (build["fmax_mhz"] * 1e6), 6)
+            speedup[key] = round(numpy_s[key] / onchip_s[key], 1)
+    out.update({
+        "numpy_learning_phase_s": numpy_s,
+        "hardware_ga_reference_phase_s": ref_s,
+        "onchip_learning_phase_cycles": cycles,
+        "learning_phase": f"{GENERATIONS} generations, population {POPULATION}, tournament {TOURNAMENT}",
+    })
+    if build:
+        out["onchip_learning_phase_s"] = onchip_s
+        out["onchip_learning_speedup_vs_numpy"] = speedup
+    return out
