@@ -38,8 +38,8 @@ becomes the next pass's elite.
 
 Host protocol (all in ``Idle``, ``ready`` high)
 ------------------------------------------------
-World model: the ``model_*``, ``state_*`` and ``clear`` ports of ``EvaluatorEHW``, broadcast to
-every lane. Population: ``pop_index``, ``pop_row``, ``pop_data``, ``pop_we`` write a row of the
+World model: the ``model`` port (``hdl.ports.ModelWriteSignature``), ``state_*`` and ``clear``
+of ``EvaluatorEHW``, broadcast to every lane. Population: ``pop_index``, ``pop_row``, ``pop_data``, ``pop_we`` write a row of the
 current buffer (and mark the population unevaluated: the next pass only evaluates it);
 ``pop_index``, ``pop_row`` read a row (``pop_rdata``, one cycle later). ``seed`` + ``seed_we``
 seed every generator (``ga.hardware_ga.lane_seeds``). ``generations`` + ``start``: run that many
@@ -61,13 +61,21 @@ from ga import hardware_ga as hg
 from ga.genome import N_ROWS, OUTPUT_SHIFT, ROW_BITS
 from ga.motions import MAX_MOTION_DISTANCE_MM, N_INPUTS, N_OUTPUTS
 from ga.operators import CONTRADICTION, DONT_CARE, NEGATIVE, POSITIVE
-from hdl.controller_ehw import row_addr_bits
-from hdl.evaluator_ehw import COUNT_BITS, DISTANCE_BITS, EvaluatorEHW
+from hdl.evaluator_ehw import EvaluatorEHW
+from hdl.ports import COUNT_BITS, DISTANCE_BITS, ModelWriteSignature, row_addr_bits
 
 TAU_BITS = 10  # C <= max(258, 2T + 52) < 1024 for T <= 480
 ROW_INDEX_BITS = row_addr_bits(N_ROWS)
-_MODEL_PORTS = ("model_state", "model_motion", "model_next", "model_crash", "model_valid",
-                "model_we", "state_value", "state_we", "clear", "reflex_en")
+# The evaluator's model-side inputs, broadcast from the learner to every lane's evaluator.
+_MODEL_MEMBERS = ("state", "motion", "next", "crash", "valid", "we")  # of ModelWriteSignature
+_STATE_PORTS = ("state_value", "state_we", "clear", "reflex_en")
+
+
+def _broadcast(m, source, sink):
+    """Drive ``sink``'s model port and state inputs from ``source``'s (one writer, many copies:
+    ``wiring.connect`` joins one port to one)."""
+    m.d.comb += [getattr(sink.model, name).eq(getattr(source.model, name)) for name in _MODEL_MEMBERS]
+    m.d.comb += [getattr(sink, name).eq(getattr(source, name)) for name in _STATE_PORTS]
 
 
 def _xorshift(x):
@@ -81,10 +89,10 @@ def index_bits(population: int) -> int:
     return max(1, (population - 1).bit_length())
 
 
-def _model_port_shapes():
-    return {"model_state": N_INPUTS, "model_motion": N_OUTPUTS, "model_next": N_INPUTS,
-            "model_crash": 1, "model_valid": 1, "model_we": 1, "state_value": N_INPUTS,
-            "state_we": 1, "clear": 1, "reflex_en": 1}
+def _model_ports():
+    """The evaluator's world-model side: the model write port and the state-set inputs."""
+    return {"model": In(ModelWriteSignature()), "state_value": In(N_INPUTS), "state_we": In(1),
+            "clear": In(1), "reflex_en": In(1)}
 
 
 class Lane(wiring.Component):
@@ -93,7 +101,7 @@ class Lane(wiring.Component):
 
     Ports: ``tau``, ``slot``, ``active`` (the slot counter as lane j sees it), ``c_last`` (C - 1),
     ``copy_mode``, ``cur_buf``, ``best_prev`` (pass constants), ``seed``/``seed_we``, the score
-    replica's write port ``score_*``, the model ports (to the evaluator), the bank request
+    replica's write port ``score_*``, the model port and state inputs (to the evaluator), the bank request
     ``rd_en``/``rd_row``/``rd_addr`` and the row ``data_row`` whose data is expected on
     ``rd_data`` this cycle, the bank write ``wr_*``, and the result ``result_valid``,
     ``result_index``, ``crashes``, ``loops``, ``distance``; ``n_states``, ``ready`` from the
@@ -121,15 +129,14 @@ class Lane(wiring.Component):
             "avoid_en": In(1), "avoid_state": In(N_INPUTS), "avoid_motion": In(N_OUTPUTS),
             "result_eligible": Out(1),
         }
-        ports.update({name: In(width) for name, width in _model_port_shapes().items()})
+        ports.update(_model_ports())
         super().__init__(ports)
 
     def elaborate(self, platform):
         m = Module()
         cfg, ib, T, P, L = self.config, self.ib, self.config.tournament, self.config.population, self.config.lanes
         ev = m.submodules.evaluator = EvaluatorEHW(double_buffer=True, distance_rule=self.distance_rule)
-        for name in _MODEL_PORTS:
-            m.d.comb += getattr(ev, name).eq(getattr(self, name))
+        _broadcast(m, self, ev)
         m.d.comb += [self.n_states.eq(ev.n_states), self.ready.eq(ev.ready)]
 
         scores = m.submodules.scores = Memory(shape=hg.SCORE_BITS, depth=2 << ib, init=[])
@@ -248,7 +255,7 @@ class Lane(wiring.Component):
         child_valid_r = Signal()
         m.d.sync += [child_r.eq(child), child_valid_r.eq(child_valid)]
         m.d.comb += [
-            ev.row_addr.eq(row_r), ev.row_data.eq(mutated), ev.row_we.eq(stage2),
+            ev.row.addr.eq(row_r), ev.row.data.eq(mutated), ev.row.we.eq(stage2),
             self.wr_en.eq(stage2 & child_valid_r), self.wr_row.eq(row_r),
             self.wr_addr.eq(Cat(child_r[:ib], ~self.cur_buf)), self.wr_data.eq(mutated),
         ]
@@ -315,7 +322,7 @@ class Learner(wiring.Component):
             "escape_crashes": Out(COUNT_BITS), "escape_loops": Out(COUNT_BITS),
             "escape_distance": Out(DISTANCE_BITS),
         }
-        ports.update({name: In(width) for name, width in _model_port_shapes().items()})
+        ports.update(_model_ports())
         super().__init__(ports)
 
     def elaborate(self, platform):
@@ -324,8 +331,7 @@ class Learner(wiring.Component):
         lanes = [Lane(cfg, j, self.distance_rule) for j in range(L)]
         for j, lane in enumerate(lanes):
             m.submodules[f"lane{j}"] = lane
-            for name in _MODEL_PORTS:
-                m.d.comb += getattr(lane, name).eq(getattr(self, name))
+            _broadcast(m, self, lane)
         banks = []
         for r in range(N_ROWS):
             mem = Memory(shape=ROW_BITS, depth=2 << ib, init=[])

@@ -22,7 +22,7 @@ from cocotb.triggers import FallingEdge
 from ga.world_model import WorldModel
 
 INPUTS = ("pop_index", "pop_row", "pop_data", "pop_we", "seed", "seed_we", "generations", "start",
-          "model_state", "model_motion", "model_next", "model_crash", "model_valid", "model_we",
+          "model__state", "model__motion", "model__next", "model__crash", "model__valid", "model__we",
           "state_value", "state_we", "clear", "reflex_en", "avoid_en", "avoid_state", "avoid_motion")
 
 
@@ -62,9 +62,9 @@ class Testbench:
 
     async def observe(self, mirror: WorldModel, state, motion, next_state, crashed):
         mirror.observe(state, motion, next_state, crashed)
-        await self.pulse(model_state=state, model_motion=motion,
-                         model_next=int(mirror.next_state[state, motion]),
-                         model_crash=int(mirror.crash[state, motion]), model_valid=1, model_we=1,
+        await self.pulse(model__state=state, model__motion=motion,
+                         model__next=int(mirror.next_state[state, motion]),
+                         model__crash=int(mirror.crash[state, motion]), model__valid=1, model__we=1,
                          state_value=state, state_we=1)
         await self.pulse(state_value=next_state, state_we=1)
 
