@@ -8,6 +8,8 @@ one core against the learning engine on the chip (SPEC section 12, issue 14).
   checked against the RTL in tests/test_learner.py) at the Fmax of a placed and routed build of
   the engine with ``onchip_lanes`` lanes (``onchip_fmax_source`` says which build).
 - ``onchip_learning_speedup_vs_numpy``: the ratio, per model.
+- ``onchip_clock_for_10x_mhz``: the clock at which the engine with ``onchip_lanes`` lanes is 10x
+  the NumPy GA (its cycles x 10 / the NumPy time), per model: the Fmax a build must reach.
 - ``hardware_ga_reference_phase_s``: the same phase in ``ga.hardware_ga`` (the bit-exact NumPy
   model of the engine), for scale.
 
@@ -101,13 +103,14 @@ def run() -> dict:
         out.update({"onchip_lanes": lanes, "onchip_fmax_mhz": build["fmax_mhz"],
                     "onchip_luts": build["luts"], "onchip_lut_fraction": build["lut_fraction"]})
     config = hg.HardwareGAConfig(population=POPULATION, tournament=TOURNAMENT, lanes=lanes)
-    numpy_s, onchip_s, cycles, speedup, ref_s = {}, {}, {}, {}, {}
+    numpy_s, onchip_s, cycles, speedup, ref_s, clock_10x = {}, {}, {}, {}, {}, {}
     for name, model in models().items():
         key = f"{name}_states"
         numpy_s[key] = round(host_phase_s(model), 4)
         ref_s[key] = round(reference_phase_s(model, lanes), 4)
         n = hg.learn_cycles(model.n_states, config, GENERATIONS)
         cycles[key] = n
+        clock_10x[key] = round(n * 10 / numpy_s[key] / 1e6, 2)
         if build:
             onchip_s[key] = round(n / (build["fmax_mhz"] * 1e6), 6)
             speedup[key] = round(numpy_s[key] / onchip_s[key], 1)
@@ -115,6 +118,8 @@ def run() -> dict:
         "numpy_learning_phase_s": numpy_s,
         "hardware_ga_reference_phase_s": ref_s,
         "onchip_learning_phase_cycles": cycles,
+        "onchip_lanes": lanes,
+        "onchip_clock_for_10x_mhz": clock_10x,
         "learning_phase": f"{GENERATIONS} generations, population {POPULATION}, tournament {TOURNAMENT}",
     })
     if build:
