@@ -97,7 +97,7 @@ def test_evaluator_cache_gives_the_driven_result():
     import numpy as np
 
     from cosim.offline import Evaluator
-    from ga.model_free import evaluate
+    from cosim.offline import evaluate
     from ga.operators import random_population
     from sim_world.world import World
 

@@ -91,8 +91,9 @@ def test_tournament_pressure():
     # P(best of 5 draws with replacement is the top individual) = 1 - (19/20)^5 = 0.226
     assert abs((winners == 19).mean() - (1 - (19 / 20) ** 5)) < 0.015
     assert (winners == 0).mean() < 1e-3  # the worst wins only if drawn 5 times: 20^-5
-    assert np.all(op.tournament(rng, fitness, 50, 1) >= 0)
-    assert (op.tournament(rng, fitness, 2000, 1) == 19).mean() < 0.1  # size 1: no pressure
+    # size 1: no pressure, every individual wins about equally often (2,000 draws of 20: 100 each)
+    uniform = np.bincount(op.tournament(rng, fitness, 2000, 1), minlength=20)
+    assert uniform.shape == (20,) and uniform.min() > 60 and uniform.max() < 140
 
 
 def test_elite_order():
