@@ -20,13 +20,14 @@ SEEDS  ?= 5
 JOBS   ?= 2
 ARGS   ?=
 
-.PHONY: all test sim offline compare verilog bench arena baseline hdl-tools venv clean distclean help
+.PHONY: all test test-fast sim offline compare verilog bench arena baseline hdl-tools venv clean distclean help
 
 all: test
 
 help:
 	@echo "make sim       on-line model-based experiment (BACKEND=reference|amaranth|cocotb, SIM=verilator|icarus, SEED=1, HDL_SAMPLE)"
 	@echo "make test      the whole test suite (creates .venv, installs iverilog if missing)"
+	@echo "make test-fast the suite without the cocotb/Verilator simulator builds (the inner loop)"
 	@echo "make offline   off-line model-free experiment"
 	@echo "make compare   both methods over SEEDS seeds -> results/compare.md"
 	@echo "make verilog   build/verilog/*.v"
@@ -65,6 +66,10 @@ hdl-tools:
 
 test: $(STAMP) hdl-tools
 	$(PY) -m pytest -n $(JOBS) $(ARGS)
+
+# The inner loop: every test but those that build Verilog in a simulator (markers in pyproject.toml).
+test-fast: $(STAMP)
+	$(PY) -m pytest -n $(JOBS) -m "not cocotb and not verilator" $(ARGS)
 
 sim: $(STAMP) hdl-tools
 	EHW_SIM=$(SIM) EHW_HDL_SAMPLE=$(HDL_SAMPLE) $(PY) -m cosim.online --backend $(BACKEND) --seed $(SEED) $(ARGS)

@@ -47,7 +47,7 @@ from ga.motions import (
     Sector,
 )
 from sim_world.arena import N_POSITIONS, load_arena
-from sim_world.course import DEFAULT_MAX_LEG_STEPS, run_course
+from sim_world.course import DEFAULT_MAX_LEG_STEPS, Course, run_course
 from sim_world.world import DEFAULT_NOISE, World
 
 
@@ -167,7 +167,9 @@ def evaluate_legs(table, runs, max_leg_steps: int = DEFAULT_MAX_LEG_STEPS, limit
         arena = arenas.get(name) or arenas.setdefault(name, load_arena(name))
         world = World(arena, noise=noise, seed=seed)
         weight = 1 if noise is not None else NOISE_FREE_WEIGHT
-        for leg in range(-1, N_POSITIONS - 1):
+        course = Course.of(arena)
+        for target in range(course.n_positions):  # the leg after the target-th (0: from the start)
+            leg = course.position_after(target) if target else -1
             reached, n, seen = _run_leg(world, table, leg, max_leg_steps)
             steps += n
             if not reached:
