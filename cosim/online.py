@@ -42,17 +42,18 @@ from cosim.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
 from cosim.download import choose_download
 from cosim.failures import Track, blame
 from cosim.online_config import OnlineConfig
+from ga.diversity import diversity
 from ga.evaluator import fitness as model_fitness
 from ga.evolution import GeneticAlgorithm
 from ga.genome import hex_from_rows, rows_from_hex
 from ga.motions import OBSTACLE_MASK
-from ga.diversity import diversity
 from ga.truth_table import truth_tables
 from ga.world_model import WorldModel
 from sim_world.course import Course
 from sim_world.world import DEFAULT_NOISE, Fault, World
 
 CHECKPOINT_KIND = "online"
+
 
 def _seeds(seed: int) -> tuple[int, np.random.Generator]:
     """The world's noise seed and the GA's generator, both derived from the run's seed."""

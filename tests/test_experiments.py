@@ -6,8 +6,6 @@ import importlib.util
 import json
 from pathlib import Path
 
-import pytest
-
 EXPERIMENTS = Path(__file__).resolve().parent.parent / "experiments"
 
 
