@@ -20,6 +20,7 @@ any run can be re-run from its results: ``ehw sim --config results/.../config.to
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import json
 import math
 import tomllib
@@ -109,7 +110,7 @@ def load_config_file(path, types_of: dict[str, object], choices: dict[str, tuple
     for key, value in raw.items():
         what = f"config file {str(path)!r}: key {key!r}"
         if key not in types_of:
-            near = [k for k in types_of if k.replace("_", "") == key.replace("_", "").replace("-", "")]
+            near = difflib.get_close_matches(key.replace("-", "_"), list(types_of), n=1)
             hint = f" (did you mean {near[0]!r}?)" if near else ""
             raise ConfigFileError(f"{what} is not a run option{hint}; known keys: {', '.join(sorted(types_of))}")
         if isinstance(value, dict):

@@ -50,6 +50,7 @@ import numpy as np
 
 from cosim.boards import BACKENDS, make_boards
 from cosim.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
+from cosim.runs import atomic_savefig, atomic_write_json
 from ga.evaluator import fitness as model_fitness
 from ga.evolution import GAConfig, GeneticAlgorithm
 from ga.genome import hex_from_rows, rows_from_hex
@@ -958,7 +959,7 @@ def write_plots(run: OnlineRun, out: Path) -> list[Path]:
         a2.grid(alpha=0.3)
         fig.suptitle(title)
         paths.append(out / name)
-        fig.savefig(paths[-1], dpi=110, bbox_inches="tight")
+        atomic_savefig(fig, paths[-1], dpi=110, bbox_inches="tight")
         plt.close(fig)
 
     fig10(64, "fig10_targets_states.png", "Targets vs generations; states and transitions vs interactions")
@@ -970,7 +971,7 @@ def write_plots(run: OnlineRun, out: Path) -> list[Path]:
 def write_results(run: OnlineRun, out: Path, plots: bool = True) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     summary = run.summary()
-    (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
+    atomic_write_json(out / "summary.json", summary)
     if plots:
         summary["plots"] = [str(p) for p in write_plots(run, out)]
     return summary
@@ -1078,23 +1079,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv=None) -> int:
-    args = build_parser().parse_args(argv)
-    config = config_from_args(args)
-    if args.backend == "cocotb":
-        # The loop must run inside the cocotb simulation: that module launches it (in a thread).
-        from cosim.cocotb_backend import main_from_args
+    """``python -m cosim.online ...`` is ``ehw sim ...`` (cosim.cli: run folders, config files,
+    checked options, one ``error:`` line for a user error)."""
+    from cosim.cli import main as ehw
 
-        return main_from_args(args, config)
-    try:
-        run = make_run(config, args.backend, args.out, resume=args.resume, progress=not args.no_progress)
-    except CheckpointError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    run.run()
-    summary = write_results(run, args.out, plots=not args.no_plots)
-    print(summary_table(summary))
-    print(f"wrote {args.out / 'summary.json'}" + (f" and {len(summary.get('plots', []))} plots" if not args.no_plots else ""))
-    return 0
+    return ehw(["sim", *(sys.argv[1:] if argv is None else argv)])
 
 
 if __name__ == "__main__":
