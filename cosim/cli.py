@@ -32,6 +32,7 @@ plus the flags every run shares, spelled the same everywhere: ``--seed``, ``--ou
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import datetime as _dt
 import importlib
@@ -103,8 +104,7 @@ def _flag(text) -> bool:
 
 def resolve_hdl_settings(args) -> dict:
     """The HDL settings of a run, option > environment > default, each checked: ``simulator``,
-    ``hdl_sample``, ``waves``, ``clock_hz``. Also written back to the process environment, which
-    the backends read (and the cocotb simulator process inherits): one value everywhere."""
+    ``hdl_sample``, ``waves``, ``clock_hz`` (see :func:`hdl_environment`)."""
     from cosim.cocotb_run import SIMULATORS
     from cosim.hardware_time import CLOCK_HZ
 
@@ -130,9 +130,25 @@ def resolve_hdl_settings(args) -> dict:
     p_max = _from_env("EHW_SYSTEM_P_MAX", _count, "a population RAM depth")
     if p_max == 0:
         raise UserError("environment variable EHW_SYSTEM_P_MAX=0: a population RAM depth must be positive")
-    os.environ.update({"EHW_SIM": simulator, "EHW_HDL_SAMPLE": str(sample), "WAVES": "1" if waves else "0",
-                       "EHW_CLOCK_HZ": repr(float(clock))})
     return {"simulator": simulator, "hdl_sample": sample, "waves": waves, "clock_hz": float(clock)}
+
+
+@contextlib.contextmanager
+def hdl_environment(settings: dict):
+    """The resolved settings in the process environment while a command runs (the backends read
+    them there, and the cocotb simulator process inherits them); the old values come back after."""
+    values = {"EHW_SIM": settings["simulator"], "EHW_HDL_SAMPLE": str(settings["hdl_sample"]),
+              "WAVES": "1" if settings["waves"] else "0", "EHW_CLOCK_HZ": repr(settings["clock_hz"])}
+    saved = {k: os.environ.get(k) for k in values}
+    os.environ.update(values)
+    try:
+        yield
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
 
 
 def _add_hdl_options(p) -> None:
@@ -373,7 +389,8 @@ def cmd_sim(args, extras: dict) -> int:
     config = online_config(args, extras)
     progress = not (args.quiet or getattr(args, "no_progress", False))
     plots = not getattr(args, "no_plots", False)
-    with open_run(args.out, RESULTS / "model_based", config.seed, resume=args.resume, force=args.force) as run_dir:
+    with open_run(args.out, RESULTS / "model_based", config.seed, resume=args.resume,
+                  force=args.force) as run_dir, hdl_environment(settings):
         out = run_dir.path
         if args.resume:
             config = _stored_online_config(out, config)
@@ -523,7 +540,7 @@ def _bench_parser(p) -> None:
 def cmd_bench(args, extras: dict) -> int:
     import benchmarks.__main__ as bench
 
-    resolve_hdl_settings(argparse.Namespace(backend="cocotb"))
+    resolve_hdl_settings(argparse.Namespace(backend="cocotb"))  # the environment's values checked first
     with _lock_out(Path(args.out).parent):
         return bench.run_from_args(args) or 0
 
