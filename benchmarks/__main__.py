@@ -23,7 +23,7 @@ def _names() -> list[str]:
 def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     parser.add_argument("only", nargs="*", metavar="MODULE",
                         help=f"modules to run (default: all of {', '.join(_names())})")
-    parser.add_argument("--out", type=Path, default=RESULTS,
+    parser.add_argument("--out", type=Path, default=RESULTS, metavar="FILE",
                         help="the figures file (merged into an existing one)")
     return parser
 

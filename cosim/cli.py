@@ -553,7 +553,10 @@ def _arena_parser(p) -> None:
 
 def cmd_arena(args, extras: dict) -> int:
     from sim_world import render
+    from sim_world.arena import ARENAS, load_arena
 
+    for name in args.arena or ARENAS:  # every file checked before anything is written
+        load_arena(name)
     with _lock_out(args.out):
         return render.run_from_args(args) or 0
 

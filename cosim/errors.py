@@ -40,6 +40,10 @@ def run_main(main: Callable[[Sequence[str] | None], int | None], argv: Sequence[
         sys.stdout.flush()
         print(error_line(exc), file=sys.stderr)
         return EXIT_USER_ERROR
+    except SystemExit as exc:  # argparse: --help (0) or a bad command line (2, its line printed)
+        if exc.code is None or isinstance(exc.code, int):
+            return int(exc.code or 0)
+        raise
     except KeyboardInterrupt:
         print("error: interrupted", file=sys.stderr)
         return 130

@@ -45,7 +45,7 @@ def write_verilog(name: str, out_dir: Path | str = "build/verilog") -> Path:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    parser.add_argument("--out", default="build/verilog", help="output folder")
+    parser.add_argument("--out", default="build/verilog", metavar="DIR", help="output folder")
     parser.add_argument("blocks", nargs="*", default=list(BLOCKS), metavar="BLOCK",
                         help=f"blocks to generate (default: all of {', '.join(BLOCKS)})")
     return parser

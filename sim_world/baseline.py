@@ -259,7 +259,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     parser.add_argument("--first-seed", type=int, default=0, metavar="FIRST",
                         help="first noisy seed (100 and up were never tuned on)")
     parser.add_argument("--max-leg-steps", type=int, default=DEFAULT_MAX_LEG_STEPS, help="step limit of one leg")
-    parser.add_argument("--out", type=Path, default=Path("results"),
+    parser.add_argument("--out", type=Path, default=Path("results"), metavar="DIR",
                         help="folder of baseline.json and baseline_trajectory.png")
     parser.add_argument("--tune", type=float, default=0.0, metavar="SECONDS",
                         help="continue the local search from the shipped table and print the new table")

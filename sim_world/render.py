@@ -135,7 +135,7 @@ def plot_trajectory(arena: Arena, trajectory, path, title: str | None = None, nu
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
-    parser.add_argument("--out", type=Path, default=Path("results"), help="folder of the pictures")
+    parser.add_argument("--out", type=Path, default=Path("results"), metavar="DIR", help="folder of the pictures")
     parser.add_argument("--arena", action="append", metavar="NAME|FILE",
                         help=f"arena(s) to render, repeatable (default: all of {', '.join(ARENAS)})")
     return parser
