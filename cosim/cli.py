@@ -445,6 +445,12 @@ def cmd_offline(args, extras: dict) -> int:
     load_arena(args.arena)
     with open_run(args.out, RESULTS / "model_free", args.seed, resume=args.resume, force=args.force) as run_dir:
         out = run_dir.path
+        if args.resume:  # the checkpoint's config checked before anything is written
+            from cosim.checkpoint import load_checkpoint
+
+            load_checkpoint(out / "checkpoint.json", offline.KIND,
+                            offline.run_config(args.seed, args.arena, args.max_leg_steps, offline.N_TARGETS,
+                                               offline.default_ga_config()))
         options = {k: getattr(args, k) for k in _option_keys(_SUBPARSERS["offline"], exclude=("table",))}
         _write_config(out, {k: (str(v) if isinstance(v, Path) else v) for k, v in options.items()}, {}, "offline")
         summary = offline.run_from_args(args, out)
@@ -642,6 +648,15 @@ def _main(argv: Sequence[str] | None) -> int:
         parser.print_help(sys.stderr)
         return 2
     extras = {}
+    if args.command == "offline" and args.resume and args.config is None:
+        # A resumed run keeps its options: the run folder's config.toml, flags over it (the
+        # checkpoint then refuses a flag that changes the run, naming the key).
+        from cosim.runs import read_latest
+
+        folder = args.out if args.out is not None else read_latest(RESULTS / "model_free")
+        if folder is not None and (Path(folder) / "config.toml").is_file():
+            args.config = Path(folder) / "config.toml"
+            argv = [*argv, "--config", str(args.config)]
     if getattr(args, "config", None) is not None:
         sub = _SUBPARSERS[args.command]
         if args.command == "sim":

@@ -340,3 +340,15 @@ def test_gym_env_conventions():
         after = env.step(2)
     assert any("reset()" in str(w.message) for w in caught)
     assert after[0] == obs and after[1] == 0.0 and after[3] and info["interactions"] == after[4]["interactions"]
+
+
+def test_offline_resume_keeps_the_run_options(ehw, tmp_path):
+    tiny = ["--arena", "empty", "--max-leg-steps", "40", "--quiet", "--no-plots"]
+    assert ehw("offline", *tiny, "--seed", "3", "--generations-cap", "1", "--out", "run")[0] == 0
+    # Resumed with no options: the seed, arena and step limit stored with the run are used.
+    assert ehw("offline", "--resume", "--out", "run", "--generations-cap", "2")[0] == 0
+    summary = json.loads((tmp_path / "run/summary.json").read_text())
+    assert summary["seed"] == 3 and summary["generations"] == 2
+    config = (tmp_path / "run/config.toml").read_text()
+    _one_error(*ehw("offline", "--resume", "--out", "run", "--seed", "4")[::2], "seed: saved 3, now 4")
+    assert (tmp_path / "run/config.toml").read_text() == config
