@@ -18,6 +18,8 @@ from typing import Protocol
 
 import numpy as np
 
+from cosim.errors import UserError
+
 BACKENDS = ("reference", "amaranth", "cocotb")
 
 
@@ -131,7 +133,7 @@ class ReferenceEvaluatorBoard:
         )
 
 
-class BackendUnavailable(RuntimeError):
+class BackendUnavailable(UserError, RuntimeError):
     """A board backend that is named in SPEC section 9 but not installed in this checkout yet."""
 
 

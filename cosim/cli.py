@@ -413,9 +413,7 @@ def cmd_sim(args, extras: dict) -> int:
             run = make_run(config, args.backend, out, resume=args.resume, progress=progress)
             run.run()
             summary = write_results(run, out, plots=plots)
-        written = [out / name for name in ("summary.json", "board_log.json", "sessions.json")]
-        written += [Path(p) for p in summary.get("plots", [])]
-        run_dir.remove_stale(written)
+        run_dir.remove_stale()
         print(summary_table(summary))
         print(f"wrote {out / 'summary.json'}" + (f" and {len(summary.get('plots', []))} plots" if plots else ""))
     return 0
@@ -453,9 +451,8 @@ def cmd_offline(args, extras: dict) -> int:
                                                offline.default_ga_config()))
         options = {k: getattr(args, k) for k in _option_keys(_SUBPARSERS["offline"], exclude=("table",))}
         _write_config(out, {k: (str(v) if isinstance(v, Path) else v) for k, v in options.items()}, {}, "offline")
-        summary = offline.run_from_args(args, out)
-        written = [out / n for n in ("summary.json", "history.json")] + [out / name for name in (summary.get("figures") or {}).values()]
-        run_dir.remove_stale(written)
+        offline.run_from_args(args, out)
+        run_dir.remove_stale()
     return 0
 
 

@@ -25,6 +25,7 @@ import shutil
 import socket
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 from cosim.errors import UserError
@@ -215,6 +216,7 @@ class RunFolder:
         self.lock = lock
         self.fresh = fresh
         self.resumed = resumed
+        self.started_ns = time.time_ns()
 
     def __enter__(self) -> "RunFolder":
         return self
@@ -225,15 +227,18 @@ class RunFolder:
     def close(self) -> None:
         self.lock.release()
 
-    def remove_stale(self, written, keep=("checkpoint.json", "config.toml")) -> list[Path]:
-        """Delete the result files in the folder that this run did not write (``written``) and
-        that are not in ``keep``: e.g. a plot of an earlier session when this one made none."""
+    def remove_stale(self, written=(), keep=("checkpoint.json", "config.toml", "sessions.json")) -> list[Path]:
+        """Delete the result files of an earlier session that this one did not write again: a
+        file older than this session's start, not in ``written`` and not named in ``keep`` (e.g.
+        a plot when this session made none). Files this session wrote (or a process it started,
+        such as the cocotb simulator) are newer and stay."""
         written = {Path(p).resolve() for p in written}
         removed = []
         for p in result_files(self.path):
-            if p.resolve() not in written and p.name not in keep:
-                p.unlink(missing_ok=True)
-                removed.append(p)
+            if p.resolve() in written or p.name in keep or p.stat().st_mtime_ns >= self.started_ns:
+                continue
+            p.unlink(missing_ok=True)
+            removed.append(p)
         return removed
 
 

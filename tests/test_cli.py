@@ -132,6 +132,15 @@ def test_force_replaces_and_leaves_no_stale_plot(ehw, tmp_path):
     assert ehw("sim", *TINY, "--seed", "4", "--out", "run", "--force")[0] == 0
     assert not list((tmp_path / "run").glob("*.png"))
     assert json.loads((tmp_path / "run/summary.json").read_text())["seed"] == 4
+    # The same when a run is resumed without plots: no figure of an earlier session stays.
+    # (Seed 1 has learning phases, so a checkpoint, with one target.)
+    assert ehw("sim", "--arena", "empty", "--targets", "1", "--population", "20", "--quiet",
+               "--out", "run2")[0] == 0
+    assert len(list((tmp_path / "run2").glob("*.png"))) == 2
+    assert ehw("sim", "--resume", "--out", "run2", "--quiet", "--no-plots")[0] == 0
+    assert not list((tmp_path / "run2").glob("*.png"))
+    assert {p.name for p in (tmp_path / "run2").iterdir()} == {
+        ".lock", "checkpoint.json", "config.toml", "sessions.json", "summary.json"}
 
 
 def test_a_folder_in_use_is_refused_and_a_dead_lock_taken_over(ehw, tmp_path):
