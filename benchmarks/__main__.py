@@ -56,14 +56,9 @@ def run_from_args(args) -> int:
     return 0
 
 
-def main(argv=None) -> int:
-    """``python -m benchmarks ...`` is ``ehw bench ...``."""
+if __name__ == "__main__":  # ``python -m benchmarks`` is ``ehw bench``
     import sys
 
-    from cosim.cli import main as ehw
+    from cosim.cli import main
 
-    return ehw(["bench", *(sys.argv[1:] if argv is None else argv)])
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(main(["bench", *sys.argv[1:]]))

@@ -489,49 +489,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     return parser
 
 
-def print_table(paths) -> int:
-    from cosim.errors import UserError
-
-    summaries = []
-    for path in paths:
-        try:
-            summaries.append(json.loads(Path(path).read_text()))
-        except (OSError, ValueError) as exc:
-            raise UserError(f"--table: cannot read the summary {str(path)!r}: {exc}") from None
-    try:
-        print(seeds_table(summaries), end="")
-    except (KeyError, TypeError) as exc:
-        raise UserError(f"--table: a file is not an off-line summary (no {exc})") from None
-    return 0
-
-
-def run_from_args(args, out: Path) -> dict:
-    """Run the experiment of parsed ``args`` into the run folder ``out``; print the figures."""
-    summary = run_offline(
-        args.seed, generations_cap=args.generations_cap, workers=args.workers, resume=args.resume,
-        out=out, arena=args.arena, max_leg_steps=args.max_leg_steps, progress=not args.quiet,
-        plots=not args.no_plots,
-    )
-    _WORLDS.clear()  # free the pymunk spaces now, not during interpreter shutdown
-    keys = ("seed", "reached_all_targets", "targets_reached", "generations", "genetic_operations",
-            "interactions", "world_states", "transitions", "wall_time_s")
-    for k in keys:
-        print(f"{k:22s} {summary[k]}")
-    if summary.get("transfer"):
-        t = summary["transfer"]
-        print(f"{'transfer (noisy world)':22s} targets before a crash: {t['targets_without_crash']}")
-    print(f"wrote {Path(out) / 'summary.json'}")
-    return summary
-
-
-def main(argv=None) -> int:
-    """``python -m cosim.offline ...`` is ``ehw offline ...``."""
+if __name__ == "__main__":  # ``python -m cosim.offline`` is ``ehw offline``
     import sys
 
-    from cosim.cli import main as ehw
+    from cosim.cli import main
 
-    return ehw(["offline", *(sys.argv[1:] if argv is None else argv)])
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(main(["offline", *sys.argv[1:]]))

@@ -38,7 +38,6 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import math
 import sys
 import time
@@ -1078,13 +1077,7 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def main(argv=None) -> int:
-    """``python -m cosim.online ...`` is ``ehw sim ...`` (cosim.cli: run folders, config files,
-    checked options, one ``error:`` line for a user error)."""
-    from cosim.cli import main as ehw
+if __name__ == "__main__":  # ``python -m cosim.online`` is ``ehw sim``
+    from cosim.cli import main
 
-    return ehw(["sim", *(sys.argv[1:] if argv is None else argv)])
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(main(["sim", *sys.argv[1:]]))

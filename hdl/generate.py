@@ -62,14 +62,9 @@ def run_from_args(args) -> int:
     return 0
 
 
-def main(argv=None) -> int:
-    """``python -m hdl.generate`` / ``ehw-verilog`` is ``ehw verilog``."""
+if __name__ == "__main__":  # ``python -m hdl.generate`` is ``ehw verilog``
     import sys
 
-    from cosim.cli import main as ehw
+    from cosim.cli import main
 
-    return ehw(["verilog", *(sys.argv[1:] if argv is None else argv)])
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(main(["verilog", *sys.argv[1:]]))

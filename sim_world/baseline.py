@@ -26,7 +26,6 @@ results/baseline_trajectory.png. ``--tune SECONDS`` continues the search from th
 from __future__ import annotations
 
 import argparse
-import json
 import time
 from pathlib import Path
 
@@ -300,14 +299,9 @@ def run_from_args(args) -> int:
     return 0
 
 
-def main(argv=None) -> int:
-    """``python -m sim_world.baseline ...`` is ``ehw baseline ...``."""
+if __name__ == "__main__":  # ``python -m sim_world.baseline`` is ``ehw baseline``
     import sys
 
-    from cosim.cli import main as ehw
+    from cosim.cli import main
 
-    return ehw(["baseline", *(sys.argv[1:] if argv is None else argv)])
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(main(["baseline", *sys.argv[1:]]))

@@ -152,14 +152,9 @@ def run_from_args(args) -> int:
     return 0
 
 
-def main(argv=None) -> int:
-    """``python -m sim_world.render ...`` is ``ehw arena ...``."""
+if __name__ == "__main__":  # ``python -m sim_world.render`` is ``ehw arena``
     import sys
 
-    from cosim.cli import main as ehw
+    from cosim.cli import main
 
-    return ehw(["arena", *(sys.argv[1:] if argv is None else argv)])
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(main(["arena", *sys.argv[1:]]))

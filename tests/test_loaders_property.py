@@ -68,7 +68,7 @@ def test_arena_loader_loads_or_raises_arena_error(data):
 
 
 def _online_types():
-    from cosim.cli import SIM_RUN_OPTIONS
+    from cosim.run_commands import SIM_RUN_OPTIONS
     from cosim.online import OnlineConfig
 
     return {**field_types(OnlineConfig), **SIM_RUN_OPTIONS}
@@ -87,6 +87,7 @@ def test_config_loader_loads_or_raises_config_error(tmp_path_factory, raw):
     run's OnlineConfig (as ``ehw sim --config`` builds it), or a UserError naming the field."""
     import cosim.cli
     from cosim.online import OnlineConfig
+    from cosim.run_commands import online_config
 
     path = tmp_path_factory.mktemp("cfg") / "run.json"
     path.write_text(json.dumps({"config": raw}))
@@ -98,7 +99,7 @@ def test_config_loader_loads_or_raises_config_error(tmp_path_factory, raw):
     args = cosim.cli.build_parser().parse_args(["sim"])
     fields = {k: v for k, v in values.items() if k in field_types(OnlineConfig)}
     try:
-        config = cosim.cli.online_config(args, fields)
+        config = online_config(args, fields)
     except UserError:
         return
     assert isinstance(config, OnlineConfig)

@@ -12,7 +12,7 @@ from cosim.boards import (
     ReferenceEvaluatorBoard,
     make_boards,
 )
-from cosim.online import OnlineConfig, OnlineRun, adaptation_figures, main, make_run
+from cosim.online import OnlineConfig, OnlineRun, adaptation_figures, make_run
 from ga.genome import validate_rows
 from ga.operators import random_population
 from ga.truth_table import truth_tables
@@ -170,6 +170,13 @@ def test_reference_boards_follow_the_models():
 def test_unknown_backend_is_refused():
     with pytest.raises(ValueError, match="unknown backend"):
         make_boards("vhdl")
+
+
+def main(argv):
+    """``ehw sim ...`` (the on-line command line)."""
+    from cosim.cli import main as ehw
+
+    return ehw(["sim", *argv])
 
 
 def test_command_line_writes_summary_and_plots(tmp_path, capsys):
