@@ -39,6 +39,18 @@ def _online_cli():
     return module.add_arguments, module.config_from_args
 
 
+def _cocotb_launcher():
+    """``run_online_cocotb`` (the run inside a cocotb test on the Verilog), from the module that
+    starts the simulator: cosim.cocotb_launch where the checkout has it, else cosim.cocotb_backend."""
+    for name in ("cosim.cocotb_launch", "cosim.cocotb_backend"):
+        try:
+            return importlib.import_module(name).run_online_cocotb
+        except (ModuleNotFoundError, AttributeError) as exc:
+            if isinstance(exc, ModuleNotFoundError) and exc.name != name:
+                raise
+    raise ImportError("no module of this checkout provides run_online_cocotb")
+
+
 def _online_reporting():
     try:
         report = importlib.import_module("cosim.online_report")
@@ -176,8 +188,7 @@ def cmd_sim(args, extras: dict, sub=None) -> int:
         write_config(out, {"backend": args.backend, **settings}, config.to_dict(), "sim")
         write_results, summary_table = _online_reporting()
         if args.backend == "cocotb":
-            from cosim.cocotb_backend import run_online_cocotb
-
+            run_online_cocotb = _cocotb_launcher()
             print(f"cocotb backend on {settings['simulator']}")
             summary = run_online_cocotb(config, out, resume=args.resume, plots=plots, progress=progress,
                                         waves=settings["waves"], clock_hz=settings["clock_hz"],
@@ -190,7 +201,8 @@ def cmd_sim(args, extras: dict, sub=None) -> int:
             summary = write_results(run, out, plots=plots)
         run_dir.remove_stale()
         print(summary_table(summary))
-        print(f"wrote {out / 'summary.json'}" + (f" and {len(summary.get('plots', []))} plots" if plots else ""))
+        figures = sorted(out.glob("*.png"))
+        print(f"wrote {out / 'summary.json'}" + (f" and {len(figures)} figures" if figures else ""))
     return 0
 
 

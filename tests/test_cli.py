@@ -186,7 +186,7 @@ def test_two_sim_processes_on_one_folder(tmp_path):
     (["--population", "0"], ["population"]),
     (["--seed", "x"], ["--seed", "'x'"]),
     (["--clock-hz", "-5"], ["--clock-hz"]),
-    (["--blind-bit", "9", "--blind-after-target", "1"], ["blind_bit"]),
+    (["--blind-bit", "9", "--blind-after-target", "1"], ["blind", "9"]),
 ])
 def test_bad_options_are_refused_before_any_work(ehw, tmp_path, args, words):
     status, _, err = ehw("sim", *TINY, *args)
