@@ -51,11 +51,18 @@ from cosim.runs import RunLock
 
 
 def _lock_out(folder: Path):
+    """The lock of an output folder that commands other than sim/offline write into (created,
+    and refused when it is a file or not writable)."""
+    from cosim.runs import RunFolderError
+
     folder = Path(folder)
     if folder.exists() and not folder.is_dir():
         raise UserError(f"--out {str(folder)!r} is a file, not a folder")
-    folder.mkdir(parents=True, exist_ok=True)
-    return RunLock(folder)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        return RunLock(folder).acquire()
+    except OSError as exc:
+        raise RunFolderError(f"cannot write into --out {str(folder)!r}: {exc.strerror or exc}") from None
 
 
 def _compare_parser(p) -> None:
@@ -121,7 +128,8 @@ def _verilog_parser(p) -> None:
 def cmd_verilog(args, extras: dict, sub=None) -> int:
     from hdl import generate
 
-    return generate.run_from_args(args) or 0
+    with _lock_out(Path(args.out)):
+        return generate.run_from_args(args) or 0
 
 
 def _bench_parser(p) -> None:
