@@ -211,18 +211,31 @@ def _check_writable(folder: Path, what: str) -> None:
 class RunFolder:
     """The folder of one run, locked while in use: ``with open_run(...) as run_dir: ...``."""
 
-    def __init__(self, path: Path, lock: RunLock, fresh: bool, resumed: bool):
+    def __init__(self, path: Path, lock: RunLock, fresh: bool, resumed: bool,
+                 root: Path | None = None, previous: Path | None = None):
         self.path = Path(path)
         self.lock = lock
         self.fresh = fresh
         self.resumed = resumed
         self.started_ns = time.time_ns()
+        self._root, self._previous = root, previous  # where `latest` pointed before
 
     def __enter__(self) -> "RunFolder":
         return self
 
-    def __exit__(self, *exc):
-        self.lock.release()
+    def __exit__(self, exc_type, exc, tb):
+        try:
+            if exc_type is not None and self.fresh and not (self.path / "checkpoint.json").exists():
+                # A fresh run that failed before its first checkpoint leaves nothing to resume:
+                # no half-made folder, and `latest` points where it did.
+                shutil.rmtree(self.path, ignore_errors=True)
+                if self._root is not None:
+                    if self._previous is not None:
+                        write_latest(self._root, self._previous)
+                    else:
+                        (self._root / LATEST).unlink(missing_ok=True)
+        finally:
+            self.lock.release()
 
     def close(self) -> None:
         self.lock.release()
@@ -256,6 +269,7 @@ def open_run(out, root, seed: int | None = None, *, resume: bool = False, force:
         raise RunFolderError("--resume: this command keeps no checkpoint, there is nothing to resume")
     root = Path(root)
     fresh = False
+    previous = read_latest(root)
     if out is None:
         if resume:
             folder = read_latest(root)
@@ -296,4 +310,4 @@ def open_run(out, root, seed: int | None = None, *, resume: bool = False, force:
         if fresh:
             shutil.rmtree(folder, ignore_errors=True)
         raise
-    return RunFolder(folder, lock, fresh=fresh, resumed=resume)
+    return RunFolder(folder, lock, fresh=fresh, resumed=resume, root=root, previous=previous)

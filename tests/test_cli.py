@@ -361,3 +361,17 @@ def test_offline_resume_keeps_the_run_options(ehw, tmp_path):
     config = (tmp_path / "run/config.toml").read_text()
     _one_error(*ehw("offline", "--resume", "--out", "run", "--seed", "4")[::2], "seed: saved 3, now 4")
     assert (tmp_path / "run/config.toml").read_text() == config
+
+
+def test_a_fresh_run_that_fails_leaves_no_folder(ehw, tmp_path, monkeypatch):
+    assert ehw("sim", *TINY)[0] == 0
+    before = (tmp_path / "results/model_based" / LATEST).resolve()
+    from cosim.boards import BackendUnavailable
+
+    def unavailable(*args, **kwargs):
+        raise BackendUnavailable("backend 'reference' is not available (a test)")
+
+    monkeypatch.setattr("cosim.online.make_boards", unavailable)
+    _one_error(*ehw("sim", *TINY, "--seed", "2")[::2], "not available")
+    assert [p for p in (tmp_path / "results/model_based").iterdir() if p.name != LATEST] == [before]
+    assert (tmp_path / "results/model_based" / LATEST).resolve() == before
