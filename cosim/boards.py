@@ -18,6 +18,7 @@ from typing import Protocol
 
 import numpy as np
 
+from cosim.errors import UserError
 from ga.motions import DEFAULT_DISTANCE_RULE
 
 # The one place a backend is named: name -> (the module that registers its boards with
@@ -142,7 +143,7 @@ class ReferenceEvaluatorBoard:
         )
 
 
-class BackendUnavailable(RuntimeError):
+class BackendUnavailable(UserError, RuntimeError):
     """A board backend that is named in SPEC section 9 but not installed in this checkout yet."""
 
 

@@ -37,6 +37,7 @@ from typing import Callable
 import numpy as np
 
 from cosim.checkpoint import load_checkpoint, save_checkpoint
+from cosim.runs import atomic_savefig, atomic_write_json
 from ga.evolution import GAConfig, GeneticAlgorithm
 from ga.genome import hex_from_rows, rows_from_hex
 from cosim.paper import PAPER_OFFLINE as PAPER
@@ -311,13 +312,11 @@ def run_offline(
     if transfer_trials:
         summary["transfer"] = transfer(summary["best_genome"], arena, max_leg_steps, n_targets, seed,
                                        transfer_trials)
-    (out / "history.json").write_text(json.dumps(state["history"], indent=1) + "\n")
+    atomic_write_json(out / "history.json", state["history"])
     if plots:
         summary["figures"] = plot_results(out, state["history"], summary["best_genome"], arena,
                                           max_leg_steps, n_targets)
-    tmp = out / "summary.json.tmp"
-    tmp.write_text(json.dumps(summary, indent=2) + "\n")
-    tmp.replace(out / "summary.json")
+    atomic_write_json(out / "summary.json", summary, indent=2)
     return summary
 
 
@@ -403,7 +402,7 @@ def plot_results(out: Path, history: list, genome_hex: str | None, arena: str, m
         ax2.set_ylabel("fitness of the best (targets + R2 + R3)", color="tab:red")
         ax1.set_title("Model-free evolution: the best individual per generation (cf. paper Fig. 6)")
         fig.tight_layout()
-        fig.savefig(out / "fig6_best_per_generation.png", dpi=120)
+        atomic_savefig(fig, out / "fig6_best_per_generation.png", dpi=120)
         plt.close(fig)
         files["fig6"] = "fig6_best_per_generation.png"
     if genome_hex is not None:
@@ -456,41 +455,26 @@ def seeds_table(summaries: list[dict]) -> str:
 # -- Command line --------------------------------------------------------------------------------
 
 
-def main(argv=None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--seed", type=int, default=1, help="GA seed (default 1)")
+def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
+    """The off-line experiment's options (``ehw offline``; the shared --seed/--out/--resume/
+    --force/--quiet/--config come from ``cosim.cli``)."""
+    parser.add_argument("--seed", type=int, default=1, help="GA seed")
     parser.add_argument("--generations-cap", type=int, default=DEFAULT_GENERATIONS_CAP,
-                        help=f"stop after this many generations (default {DEFAULT_GENERATIONS_CAP})")
-    parser.add_argument("--workers", type=int, default=1, help="evaluation processes (default 1: serial)")
-    parser.add_argument("--resume", action="store_true", help="continue from <out>/checkpoint.json")
-    parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help=f"output folder (default {DEFAULT_OUT})")
-    parser.add_argument("--arena", default=DEFAULT_ARENA, help="arena name or .json path (default 'default')")
+                        help="stop after this many generations")
+    parser.add_argument("--workers", type=int, default=1, help="evaluation processes (1: serial)")
+    parser.add_argument("--arena", default=DEFAULT_ARENA, help="arena name or .json path")
     parser.add_argument("--max-leg-steps", type=int, default=DEFAULT_MAX_LEG_STEPS,
-                        help=f"step limit of one leg (default {DEFAULT_MAX_LEG_STEPS})")
-    parser.add_argument("--no-plots", action="store_true", help="skip the figures")
-    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+                        help="step limit of one leg")
+    parser.add_argument("--no-plots", action="store_true",
+                        help="write no figures (an earlier run's figures are removed all the same)")
     parser.add_argument("--table", nargs="+", type=Path, metavar="SUMMARY",
                         help="print the Markdown table of these summary.json files and exit")
-    args = parser.parse_args(argv)
-    if args.table:
-        print(seeds_table([json.loads(p.read_text()) for p in args.table]), end="")
-        return
-    summary = run_offline(
-        args.seed, generations_cap=args.generations_cap, workers=args.workers, resume=args.resume,
-        out=args.out, arena=args.arena, max_leg_steps=args.max_leg_steps, progress=not args.quiet,
-        plots=not args.no_plots,
-    )
-    _WORLDS.clear()  # free the pymunk spaces now, not during interpreter shutdown
-    keys = ("seed", "reached_all_targets", "targets_reached", "generations", "genetic_operations",
-            "interactions", "world_states", "transitions", "wall_time_s")
-    for k in keys:
-        print(f"{k:22s} {summary[k]}")
-    if summary.get("transfer"):
-        t = summary["transfer"]
-        print(f"{'transfer (noisy world)':22s} targets before a crash: {t['targets_without_crash']}")
-    print(f"wrote {Path(args.out) / 'summary.json'}")
+    return parser
 
 
-if __name__ == "__main__":
-    main()
+if __name__ == "__main__":  # ``python -m cosim.offline`` is ``ehw offline``
+    import sys
+
+    from cosim.cli import main
+
+    raise SystemExit(main(["offline", *sys.argv[1:]]))

@@ -314,7 +314,7 @@ def make_run(config: OnlineConfig, backend: str = "reference", out: Path | None 
     return run
 
 
-if __name__ == "__main__":
-    from cosim.online_cli import main
+if __name__ == "__main__":  # ``python -m cosim.online`` is ``ehw sim``
+    from cosim.cli import main
 
-    raise SystemExit(main())
+    raise SystemExit(main(["sim", *sys.argv[1:]]))

@@ -130,5 +130,7 @@ def main(argv=None) -> int:
         return _error(exc)
 
 
-if __name__ == "__main__":
-    raise SystemExit(main())
+if __name__ == "__main__":  # ``python -m cosim.online_cli`` is ``ehw sim``
+    from cosim.cli import main
+
+    raise SystemExit(main(["sim", *sys.argv[1:]]))

@@ -3,13 +3,13 @@ figures (``summary.json``), the table beside the paper's (section 5.2) and the p
 
 from __future__ import annotations
 
-import json
 from collections import Counter
 from pathlib import Path
 
 import numpy as np
 
 from cosim.paper import PAPER_ONLINE
+from cosim.runs import atomic_savefig, atomic_write_json
 from ga.genome import hex_from_rows
 
 
@@ -139,7 +139,7 @@ def write_plots(run, out: Path) -> list[Path]:
         a2.grid(alpha=0.3)
         fig.suptitle(title)
         paths.append(out / name)
-        fig.savefig(paths[-1], dpi=110, bbox_inches="tight")
+        atomic_savefig(fig, paths[-1], dpi=110, bbox_inches="tight")
         plt.close(fig)
 
     fig10(64, "fig10_targets_states.png", "Targets vs generations; states and transitions vs interactions")
@@ -151,7 +151,7 @@ def write_plots(run, out: Path) -> list[Path]:
 def write_results(run, out: Path, plots: bool = True) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     summary = run.summary()
-    (out / "summary.json").write_text(json.dumps(summary, indent=1) + "\n")
+    atomic_write_json(out / "summary.json", summary)
     if plots:
         summary["plots"] = [str(p) for p in write_plots(run, out)]
     return summary

@@ -162,6 +162,13 @@ def test_unknown_backend_is_refused():
         make_boards("vhdl")
 
 
+def main(argv):
+    """``ehw sim ...`` (the on-line command line)."""
+    from cosim.cli import main as ehw
+
+    return ehw(["sim", *argv])
+
+
 def test_command_line_writes_summary_and_plots(tmp_path, capsys):
     rc = main(["--seed", "2", "--arena", "empty", "--targets", "3", "--population", "20",
                "--generations-per-phase", "2", "--out", str(tmp_path), "--no-progress"])
