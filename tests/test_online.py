@@ -162,7 +162,7 @@ def test_unknown_backend_is_refused():
         make_boards("vhdl")
 
 
-def main(argv):
+def ehw_sim(argv):
     """``ehw sim ...`` (the on-line command line)."""
     from cosim.cli import main as ehw
 
@@ -170,7 +170,7 @@ def main(argv):
 
 
 def test_command_line_writes_summary_and_plots(tmp_path, capsys):
-    rc = main(["--seed", "2", "--arena", "empty", "--targets", "3", "--population", "20",
+    rc = ehw_sim(["--seed", "2", "--arena", "empty", "--targets", "3", "--population", "20",
                "--generations-per-phase", "2", "--out", str(tmp_path), "--no-progress"])
     assert rc == 0
     summary = json.loads((tmp_path / "summary.json").read_text())
@@ -184,7 +184,7 @@ def test_command_line_writes_summary_and_plots(tmp_path, capsys):
 
 
 def test_continue_past_64_reports_the_64th_target_and_fig11(tmp_path, capsys):
-    rc = main(["--seed", "2", "--arena", "empty", "--population", "20", "--generations-per-phase", "2",
+    rc = ehw_sim(["--seed", "2", "--arena", "empty", "--population", "20", "--generations-per-phase", "2",
                "--continue-past-64", "2", "--out", str(tmp_path), "--no-progress"])
     assert rc == 0
     summary = json.loads((tmp_path / "summary.json").read_text())
