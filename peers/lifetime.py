@@ -4,7 +4,7 @@
   run), the same arena, noise seeded as the on-line run seeds it (``seeds``: the first child of
   ``SeedSequence(seed)`` for the world, the second for the learner's ``numpy`` Generator).
 * **Course**: the robot starts at the arena's start pose; after the k-th target it is relocated
-  to the next position of the course (``sim_world.course``), as in the on-line run.
+  to the next position of the course (``sim_world.course.Course``), as in the on-line run.
 * **Reflex** (SPEC section 6, the paper's bias, for every method): in the four obstacle-free
   states the reflex motion is taken; the learner is not asked there, and those states allow only
   that motion in its table (their value is the reflex motion's).
@@ -35,6 +35,7 @@ import numpy as np
 from ga.motions import N_MOTIONS, N_STATES, REFLEX_TABLE
 from peers.tabular import LearnerConfig, make_learner, tuned_config
 from sim_world.arena import N_POSITIONS
+from sim_world.course import Course
 from sim_world.gym_env import CRASH_REWARD, PROGRESS_SCALE, STEP_COST, TARGET_REWARD
 from sim_world.world import DEFAULT_NOISE, World
 
@@ -57,11 +58,6 @@ def allowed_actions(reflex: bool = True) -> list[list[int]]:
     return [[int(REFLEX_TABLE[s])] if reflex and REFLEX_TABLE[s] >= 0 else every for s in range(N_STATES)]
 
 
-def _relocate(world: World, target: int) -> int:
-    """The pose after the ``target``-th target (1-based): the course's next position."""
-    return world.relocate((target - 1) % N_POSITIONS)
-
-
 def run_lifetime(method: str, seed: int, *, shaping: str = "shaped", config: LearnerConfig | None = None,
                  arena: str = "default", n_targets: int = N_POSITIONS,
                  max_interactions: int = MAX_INTERACTIONS, reflex: bool = True) -> dict:
@@ -75,6 +71,7 @@ def run_lifetime(method: str, seed: int, *, shaping: str = "shaped", config: Lea
     cpu0 = time.process_time()
     world_seed, rng = seeds(seed)
     world = World(arena, noise=DEFAULT_NOISE, seed=world_seed)
+    course = Course.of(world)
     learner = make_learner(method, allowed_actions(reflex), config, rng)
     shaped = shaping == "shaped"
     progress_per_mm = PROGRESS_SCALE / 1000.0
@@ -102,7 +99,7 @@ def run_lifetime(method: str, seed: int, *, shaping: str = "shaped", config: Lea
         if out.reached:
             targets += 1
             at_target.append(interactions)
-            s = _relocate(world, targets) if targets < n_targets else out.state
+            s = course.relocate(world, targets) if targets < n_targets else out.state
             states.add(s)
             d = world.target_distance()
         else:
