@@ -20,7 +20,7 @@ SEEDS  ?= 5
 JOBS   ?= 2
 ARGS   ?=
 
-.PHONY: all test sim offline compare verilog bench arena baseline hdl-tools venv clean distclean help
+.PHONY: all test sim offline compare rl verilog bench arena baseline hdl-tools venv clean distclean help
 
 all: test
 
@@ -28,7 +28,8 @@ help:
 	@echo "make sim       on-line model-based experiment (BACKEND=reference|amaranth|cocotb, SIM=verilator|icarus, SEED=1, HDL_SAMPLE)"
 	@echo "make test      the whole test suite (creates .venv, installs iverilog if missing)"
 	@echo "make offline   off-line model-free experiment"
-	@echo "make compare   both methods over SEEDS seeds -> results/compare.md"
+	@echo "make compare   every method over SEEDS seeds -> results/compare.{md,json,png} (JOBS, ARGS=\"--methods ... --cluster local\")"
+	@echo "make rl        install the optional deep-RL extra (stable-baselines3, CPU torch) for --methods dqn,ppo"
 	@echo "make verilog   build/verilog/*.v"
 	@echo "make bench     speed figures -> results/bench.json"
 	@echo "make arena     render the default arena -> results/arena.png"
@@ -73,7 +74,12 @@ offline: $(STAMP)
 	$(PY) -m cosim.offline --seed $(SEED) $(ARGS)
 
 compare: $(STAMP)
-	$(PY) -m cosim.compare --seeds $(SEEDS) $(ARGS)
+	$(PY) -m cosim.compare --seeds $(SEEDS) --jobs $(JOBS) $(ARGS)
+
+# The optional extra of `make compare --methods dqn,ppo`: stable-baselines3 and torch 2.13.0 (CPU).
+rl: $(STAMP)
+	$(PY) -m pip install --quiet -e '.[rl,test]'
+
 
 verilog: $(STAMP)
 	$(PY) -m hdl.generate --out build/verilog
