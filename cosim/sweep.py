@@ -37,10 +37,12 @@ def task_key(task: dict) -> dict:
 
 
 class Cache:
-    """Finished lifetimes on disk, by (method, config, seed)."""
+    """Finished lifetimes on disk, by (method, config, seed). ``read=False``: every lifetime
+    runs again (and overwrites its entry)."""
 
-    def __init__(self, root: Path | str):
+    def __init__(self, root: Path | str, read: bool = True):
         self.root = Path(root)
+        self.read = read
 
     def path(self, task: dict) -> Path:
         key = task_key(task)
@@ -50,7 +52,7 @@ class Cache:
 
     def get(self, task: dict) -> dict | None:
         path = self.path(task)
-        if not path.exists():
+        if not self.read or not path.exists():
             return None
         try:
             saved = json.loads(path.read_text())
