@@ -281,6 +281,10 @@ def markdown(report: dict) -> str:
     for name, paper in (("paper, on-line", PAPER["online"]), ("paper, off-line", PAPER["offline"])):
         lines.append(f"| {name} | yes | {paper['interactions']:,} | - | {paper['world_states']} | "
                      f"{paper['transitions']} | {paper['generations']} | - |")
+    fewer = [f"{display_name(r)}: {report['methods'][r]['seeds_run']}" for r in rows
+             if report["methods"][r]["seeds_run"] < len(seeds)]
+    if fewer:
+        lines += ["", "Rows on fewer seeds (the first ones of the range; CPU at hand): " + "; ".join(fewer) + "."]
     capped = {row: st["capped"] for row, st in report["methods"].items() if st["capped"]}
     if capped:
         lines += ["", "Short of 64 targets (an interaction, generation or crash stop; their interactions are "
@@ -419,6 +423,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--arena", default="default")
     p.add_argument("--out", type=Path, default=Path("results"))
     p.add_argument("--fresh", action="store_true", help="ignore cached lifetimes (they are overwritten)")
+    p.add_argument("--cache", type=Path, default=None, help="the lifetime cache (default <out>/compare/cache)")
+    p.add_argument("--limit-seeds", action="append", default=[], metavar="ROW=N",
+                   help="run only the first N seeds for ROW, a method or method/shaping "
+                        "(e.g. offline=5,q-learning/unshaped=10): slow rows on fewer seeds")
     p.add_argument("--max-interactions", type=int, default=None,
                    help="cap of an RL lifetime (default 100,000, as the on-line run's)")
     p.add_argument("--generations-cap", type=int, default=None, help="off-line generation cap")
@@ -485,13 +493,27 @@ def main(argv=None) -> int:
     common = dict(arena=args.arena, out=str(out), online=online, generations_cap=args.generations_cap,
                   max_interactions=args.max_interactions, resume=args.resume)
     tasks = [] if args.adaptation_only else make_tasks(methods, seeds, shapings=shapings, **common)
+    limits = {}
+    for item in ",".join(args.limit_seeds).split(","):
+        row, sep, n = item.strip().partition("=")
+        if not item.strip():
+            continue
+        if not sep or not n.isdigit() or row.partition("/")[0] not in METHODS:
+            return _error(f"--limit-seeds wants ROW=N with ROW a method or method/shaping, got {item!r}")
+        limits[row] = int(n)
+
+    def kept(task):
+        n = limits.get(task["method"], limits.get(task["method"].partition("/")[0]))
+        return n is None or task["seed"] < args.first_seed + n
+
+    tasks = [t for t in tasks if kept(t)]
     if args.blind_bit is not None:
         adapt = {**online, "blind_bit": args.blind_bit, "blind_after_target": args.blind_after_target}
         tasks += [{**t, "method": "online-adaptation", "out": str(out / "adaptation")}
                   for t in make_tasks(["online"], seeds, **{**common, "online": adapt})]
     # The slow off-line runs first, so the pool stays busy.
     tasks.sort(key=lambda t: {"offline": 0, "online": 1, "deep": 2}.get(t["kind"], 3))
-    cache = Cache(out / "cache", read=not args.fresh)
+    cache = Cache(args.cache or out / "cache", read=not args.fresh)
 
     def report_progress(task, result, cached):
         print(f"{task['method']:28s} seed {task['seed']}: interactions {result.get('interactions'):,} "
