@@ -158,3 +158,16 @@ def test_a_sweep_resumes_from_its_cache(tmp_path):
     assert grown[:2] == first and seen[2:] == [True, True, False]
     other = dict(more[0], config={**more[0]["config"], "max_interactions": 300})
     assert cache.get(other) is None and cache.path(other) != cache.path(more[0])
+
+
+def test_slow_rows_on_fewer_seeds_are_said_so(tmp_path, capsys):
+    args = ["--seeds", "2", "--methods", "baseline,q-learning", "--shaping", "shaped", "--jobs", "1",
+            "--max-interactions", "300", "--out", str(tmp_path)]
+    assert main(args + ["--limit-seeds", "q-learning/shaped=1"]) == 0
+    report = json.loads((tmp_path / "compare.json").read_text())
+    assert sorted(report["per_seed"]["baseline"]) == ["1", "2"]
+    assert sorted(report["per_seed"]["q-learning/shaped"]) == ["1"]
+    assert "Rows on fewer seeds (the first ones of the range; CPU at hand): Q-learning, shaped: 1." in \
+        (tmp_path / "compare.md").read_text()
+    assert main(args + ["--limit-seeds", "sarsa=1"]) == 2
+    assert capsys.readouterr().err.startswith("error: --limit-seeds")
