@@ -97,15 +97,20 @@ def _offline(task: dict) -> dict:
         kwargs["generations_cap"] = cfg["generations_cap"]
     summary = run_offline(task["seed"], **kwargs)
     result = {k: v for k, v in summary.items() if k not in ("history",)}
-    # The curve: the first interaction count at which the best controller so far reached k targets.
+    result["target_interactions"] = offline_curve(json.loads((out / "history.json").read_text()))
+    result["crashes"] = None  # crashes happen inside the GA's evaluations (each ends the run)
+    return result
+
+
+def offline_curve(history: list[dict]) -> list[int]:
+    """The off-line run's curve: for k = 1, 2, ... the interactions spent (by every controller
+    evaluated so far) when the best controller first reached k targets."""
     curve, best = [], 0
-    for entry in summary.get("history", []):
+    for entry in history:
         while best < entry["best_targets"]:
             best += 1
             curve.append(entry["interactions"])
-    result["target_interactions"] = curve
-    result["crashes"] = None  # crashes happen inside the GA's evaluations (each ends the run)
-    return result
+    return curve
 
 
 def _baseline(task: dict) -> dict:
@@ -339,26 +344,28 @@ def _curve(target_interactions: list[int], grid: np.ndarray, end: int) -> np.nda
 
 
 def write_plot(report: dict, path: Path) -> Path:
-    """Targets reached against interactions: per method the median over the seeds and its range."""
+    """Targets reached against interactions: per method the median over the seeds and its range
+    (dashed: unshaped rewards; off-line: targets of its best controller so far)."""
     from sim_world.render import _plt
 
     plt = _plt()
     fig, ax = plt.subplots(figsize=(8, 5), dpi=110)
     ends = [r.get("interactions") or 1 for per in report["per_seed"].values() for r in per.values()]
     grid = np.unique(np.geomspace(10, max(max(ends, default=10), 100) * 1.05, 600).round())
-    colours = plt.get_cmap("tab20").colors
-    for i, row in enumerate(_row_order(report["methods"])):
+    colours = dict(zip(METHODS, plt.get_cmap("tab10").colors))
+    for row in _row_order(report["methods"]):
         per = report["per_seed"][row]
         curves = [_curve(r.get("target_interactions") or [], grid, r.get("interactions") or 0)
                   for s, r in per.items() if "target_interactions" in r]
         if not curves:
             continue
         ys = np.vstack(curves)
-        colour = colours[(2 * i) % len(colours)]
-        ax.fill_between(grid, ys.min(axis=0), ys.max(axis=0), color=colour, alpha=0.18, linewidth=0)
+        colour = colours.get(row.partition("/")[0], "grey")
+        style = "--" if row.endswith("/unshaped") else "-"
+        ax.fill_between(grid, ys.min(axis=0), ys.max(axis=0), color=colour, alpha=0.12, linewidth=0)
         med = report["methods"][row]["interactions"]["median"]
         label = f"{display_name(row)} (median {med:,.0f})" if med is not None else display_name(row)
-        ax.plot(grid, np.median(ys, axis=0), color=colour, label=label, linewidth=1.6)
+        ax.plot(grid, np.median(ys, axis=0), color=colour, linestyle=style, label=label, linewidth=1.6)
     ax.axvline(PAPER["online"]["interactions"], color="k", linestyle=":", linewidth=1)
     ax.text(PAPER["online"]["interactions"], 1, " paper on-line\n 12,280", fontsize=7, va="bottom")
     ax.set_xscale("log")
