@@ -98,16 +98,16 @@ def test_command_line_errors_are_one_line(capsys):
 def test_online_options_are_typed_checked_and_reported():
     from cosim.compare import online_options
 
-    assert online_options(["download=closest", "loop_cycles=1", "escape=false"]) == \
-        {"download": "closest", "loop_cycles": 1, "escape": False}
-    with pytest.raises(ValueError, match="download"):
-        online_options(["download=best"])
+    assert online_options(["distance_rule=covered", "loop_cycles=0", "escape=false"]) == \
+        {"distance_rule": "covered", "loop_cycles": 0, "escape": False}
+    with pytest.raises(ValueError, match="--distance"):
+        online_options(["distance_rule=backward"])
     with pytest.raises(SystemExit, match="KEY=VALUE"):
         online_options(["no_such_field=1"])
     report = build_report({"online": {1: _fake(9_000, 300, 500)}}, "default", [1])
-    report.update(online_distance_rule="forward", online_options={"distance_rule": "forward", "download": "closest"})
+    report.update(online_distance_rule="covered", online_options={"distance_rule": "covered", "loop_cycles": 0})
     text = markdown(report)
-    assert "NOT the SPEC" in text and "`download=closest`" in text
+    assert "first reading" in text and "`loop_cycles=0`" in text
 
 
 # -- the executors and the cache -----------------------------------------------------------------
