@@ -1,6 +1,6 @@
 """Choose the tabular learners' hyper-parameters on the tuning seeds only (issue 16, honest tuning).
 
-    python experiments/tune_tabular.py [--jobs 2] [--cluster local] [--out results/tuning]
+    python experiments/tune_tabular.py [--jobs 2] [--cluster local] [--out build/experiments/tuning]
 
 For each learner (Q-learning, Dyna-Q, prioritized sweeping) and reward (shaped, unshaped) it runs
 one lifetime (``peers.lifetime.run_lifetime``, the protocol of `make compare`) per grid point and
@@ -54,7 +54,7 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--jobs", type=int, default=2)
     p.add_argument("--cluster", default=None)
-    p.add_argument("--out", type=Path, default=Path("results/tuning"))
+    p.add_argument("--out", type=Path, default=Path("build/experiments/tuning"))
     p.add_argument("--methods", default=",".join(LEARNERS))
     p.add_argument("--shaping", default=",".join(SHAPINGS))
     p.add_argument("--skip", action="append", default=[], metavar="METHOD/SHAPING",

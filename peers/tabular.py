@@ -224,7 +224,7 @@ DEFAULTS = {
 TUNING_SEEDS = (1001, 1002, 1003)
 # (method, shaping) -> the configuration chosen by experiments/tune_tabular.py on its tuning
 # seeds (TUNING_SEEDS there), never on the seeds `make compare` reports; DEFAULTS otherwise.
-# Medians are over the tuning seeds (results/tuning/tabular.json). Prioritized sweeping unshaped
+# Medians are over the tuning seeds (build/experiments/tuning/tabular.json). Prioritized sweeping unshaped
 # was not tuned (its 36 lifetimes did not fit the shared machine's CPU): it takes Dyna-Q
 # unshaped's choice, the same model and planning budget.
 TUNED: dict[tuple[str, str], LearnerConfig] = {
