@@ -529,8 +529,11 @@ def main(argv=None) -> int:
               (" (cached)" if cached else f" ({result.get('task_wall_s', 0):.0f} s)"), flush=True)
 
     t0 = time.perf_counter()
-    with executor(args.jobs, args.cluster) as pool:
-        finished = run_sweep(run_task, tasks, pool, cache, on_result=report_progress)
+    try:
+        with executor(args.jobs, args.cluster) as pool:
+            finished = run_sweep(run_task, tasks, pool, cache, on_result=report_progress)
+    except ConnectionError as exc:
+        return _error(str(exc))
     results: dict = {}
     adapted: dict = {}
     for task, result in zip(tasks, finished):

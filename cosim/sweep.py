@@ -87,7 +87,10 @@ def executor(jobs: int = 1, cluster: str | None = None) -> Iterator[Executor]:
                 dashboard_address=None, silence_logs=40))
             client = stack.enter_context(Client(local))
         else:
-            client = stack.enter_context(Client(cluster, timeout="20s"))
+            try:
+                client = stack.enter_context(Client(cluster, timeout="20s"))
+            except (OSError, TimeoutError, ValueError) as exc:
+                raise ConnectionError(f"cannot reach the Dask scheduler at {cluster!r}: {exc}") from None
         pool = client.get_executor(pure=False)
         try:
             yield pool
