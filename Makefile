@@ -26,7 +26,7 @@ SEEDS  ?= 5
 JOBS   ?= 2
 ARGS   ?=
 
-.PHONY: all test test-fast sim offline compare verilog bench arena baseline hdl-tools venv clean distclean help
+.PHONY: all test test-fast sim offline compare rl verilog bench arena baseline hdl-tools venv clean distclean help
 
 all: test
 
@@ -36,7 +36,8 @@ help:
 	@echo "make test      the whole test suite (creates .venv, installs iverilog if missing)"
 	@echo "make test-fast the suite without the cocotb/Verilator simulator builds (the inner loop)"
 	@echo "make offline   ehw offline: off-line model-free experiment"
-	@echo "make compare   both methods over SEEDS seeds -> results/compare.md"
+	@echo "make compare   ehw compare: every method over SEEDS seeds -> results/compare.{md,json,png} (JOBS, ARGS=\"--methods ... --cluster local\")"
+	@echo "make rl        install the optional deep-RL extra (stable-baselines3, CPU torch) for --methods dqn,ppo"
 	@echo "make verilog   build/verilog/*.v"
 	@echo "make bench     speed figures -> results/bench.json"
 	@echo "make arena     render the default arena -> results/arena.png"
@@ -86,7 +87,11 @@ offline: $(STAMP)
 	$(EHW) offline --seed $(SEED) $(ARGS)
 
 compare: $(STAMP)
-	$(EHW) compare --seeds $(SEEDS) $(ARGS)
+	$(EHW) compare --seeds $(SEEDS) --jobs $(JOBS) $(ARGS)
+
+# The optional extra of `make compare --methods dqn,ppo`: stable-baselines3 and torch 2.13.0 (CPU).
+rl: $(STAMP)
+	$(PY) -m pip install --quiet -e '.[rl,test]'
 
 verilog: $(STAMP)
 	$(EHW) verilog --out build/verilog $(ARGS)
