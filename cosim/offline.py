@@ -52,6 +52,10 @@ DEFAULT_GENERATIONS_CAP = 3000
 # Step limit of one leg: see docs/offline.md for the measurements behind it.
 DEFAULT_MAX_LEG_STEPS = 150
 TRANSFER_TRIALS = 10  # noisy-world runs of the best controller, noise seeds seed*1000 + i
+# The evolution simulator's safety margins, one stage each (sim_world.world.World.bumper_margin_mm):
+# the run evolves at margins[0] until the best reaches every target, then goes on at margins[1],
+# and so on; it ends when the best reaches every target at the last margin.
+DEFAULT_MARGINS = (0.0,)
 
 def default_ga_config(**overrides) -> GAConfig:
     """Paper section 5.1: population 20, tournament 5, elitism 1; our operator rates, plus the
@@ -103,12 +107,12 @@ def evaluate(world, rows, max_leg_steps: int, n_targets: int = N_TARGETS, reflex
 _WORLDS: dict = {}
 
 
-def _world(arena: str):
+def _world(arena: str, margin_mm: float = 0.0):
     from sim_world.world import World
 
-    world = _WORLDS.get(arena)
+    world = _WORLDS.get((arena, margin_mm))
     if world is None:
-        world = _WORLDS[arena] = World(_load_arena(arena))
+        world = _WORLDS[arena, margin_mm] = World(_load_arena(arena), bumper_margin_mm=margin_mm)
     return world
 
 
@@ -120,17 +124,18 @@ def _load_arena(arena: str):
 
 
 def _evaluate_one(task) -> Evaluation:
-    arena, max_leg_steps, n_targets, rows = task
-    return evaluate(_world(arena), rows, max_leg_steps, n_targets)
+    arena, margin_mm, max_leg_steps, n_targets, rows = task
+    return evaluate(_world(arena, margin_mm), rows, max_leg_steps, n_targets)
 
 
 class Evaluator:
     """Evaluates a population serially (``workers`` <= 1) or over a process pool, same result."""
 
     def __init__(self, arena: str, max_leg_steps: int, n_targets: int = N_TARGETS, workers: int = 1,
-                 cache_size: int = 4096):
+                 cache_size: int = 4096, margin_mm: float = 0.0):
         self.cache_size = cache_size  # truth tables remembered (about 200 generations of 20)
         self.arena, self.max_leg_steps, self.n_targets = arena, max_leg_steps, n_targets
+        self.margin_mm = float(margin_mm)
         self.workers = max(int(workers), 1)
         self._pool = None
         self._cache: dict[bytes, Evaluation] = {}
@@ -154,7 +159,8 @@ class Evaluator:
         for key, rows in zip(keys, pop):
             if key not in self._cache and key not in todo:
                 todo[key] = rows
-        tasks = [(self.arena, self.max_leg_steps, self.n_targets, rows) for rows in todo.values()]
+        tasks = [(self.arena, self.margin_mm, self.max_leg_steps, self.n_targets, rows)
+                 for rows in todo.values()]
         if self._pool is None:
             fresh = [_evaluate_one(t) for t in tasks]
         else:
@@ -166,6 +172,11 @@ class Evaluator:
         self._cache.update(zip(todo, fresh))
         self.simulated_steps += sum(e.steps for e in fresh)
         return [found[key] for key in keys]
+
+    def set_margin(self, margin_mm: float) -> None:
+        """Evaluate in a simulator with another safety margin from now on (forgets the stored runs)."""
+        self.margin_mm = float(margin_mm)
+        self._cache.clear()
 
     def close(self) -> None:
         if self._pool is not None:
@@ -187,12 +198,14 @@ def _arena_digest(arena: str) -> str:
     return hashlib.sha256(data.encode()).hexdigest()[:16]
 
 
-def run_config(seed: int, arena: str, max_leg_steps: int, n_targets: int, ga_config: GAConfig) -> dict:
+def run_config(seed: int, arena: str, max_leg_steps: int, n_targets: int, ga_config: GAConfig,
+               margins=DEFAULT_MARGINS) -> dict:
     """The parameters that define a run: a checkpoint resumes only under the same ones."""
     return {
         "seed": int(seed),
         "arena": str(arena),
         "arena_sha256_16": _arena_digest(arena),
+        "safety_margins_mm": [float(m) for m in margins],
         "max_leg_steps": int(max_leg_steps),
         "n_targets": int(n_targets),
         "ga": ga_config.to_dict(),
@@ -227,6 +240,7 @@ def run_offline(
     plots: bool = True,
     transfer_trials: int = TRANSFER_TRIALS,
     on_generation: Callable[[dict], None] | None = None,
+    margins=DEFAULT_MARGINS,
 ) -> dict:
     """Run (or, with ``resume``, continue) the model-free experiment; return the summary dict.
 
@@ -239,7 +253,10 @@ def run_offline(
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     ga_config = ga_config or default_ga_config()
-    config = run_config(seed, arena, max_leg_steps, n_targets, ga_config)
+    margins = tuple(float(m) for m in margins)
+    if not margins:
+        raise ValueError("margins: at least one safety margin (0 for the robot's own bumper)")
+    config = run_config(seed, arena, max_leg_steps, n_targets, ga_config, margins)
     ck_path = out / "checkpoint.json"
     if resume and ck_path.exists():
         state = load_checkpoint(ck_path, KIND, config)
@@ -252,15 +269,27 @@ def run_offline(
     t_session = time.perf_counter()
     wall_before = state["wall_time_s"]
 
-    def finished() -> bool:
+    state.setdefault("stage", 0)
+    state.setdefault("stages", [])
+
+    def solved() -> bool:
         best = state["best"]
         return best is not None and best["targets_reached"] >= n_targets
+
+    def finished() -> bool:
+        return solved() and state["stage"] == len(margins) - 1
 
     bar = tqdm(total=generations_cap, initial=min(ga.generation, generations_cap), disable=not progress,
                desc=f"model-free seed {seed}", unit="gen", dynamic_ncols=True)
     try:
-        with Evaluator(arena, max_leg_steps, n_targets, workers) as evaluator:
+        with Evaluator(arena, max_leg_steps, n_targets, workers, margin_mm=margins[state["stage"]]) as evaluator:
             while not finished() and ga.generation < generations_cap:
+                if solved():  # every target at this stage's margin: on to the next margin
+                    state["stages"].append({"margin_mm": margins[state["stage"]], "generation": ga.generation,
+                                            "interactions": state["interactions"]})
+                    state["stage"] += 1
+                    evaluator.set_margin(margins[state["stage"]])
+                    state["best"] = None
                 pop = ga.ask()
                 driven = evaluator.simulated_steps
                 evals = evaluator(pop)
@@ -292,6 +321,7 @@ def run_offline(
                     "world_states": len(states),
                     "transitions": len({(t[0], t[1]) for t in transitions}),
                     "transition_outcomes": len(transitions),
+                    "margin_mm": margins[state["stage"]],
                 }
                 state["history"].append(entry)
                 state["ga"] = ga.state_dict()
@@ -308,6 +338,8 @@ def run_offline(
         bar.close()
 
     summary = _summary(seed, state, config, ga_config, workers, finished())
+    summary["stages"] = state["stages"] + ([{"margin_mm": margins[-1], "generation": ga.generation,
+                                             "interactions": state["interactions"]}] if finished() else [])
     if transfer_trials:
         summary["transfer"] = transfer(summary["best_genome"], arena, max_leg_steps, n_targets, seed,
                                        transfer_trials)
@@ -456,6 +488,16 @@ def seeds_table(summaries: list[dict]) -> str:
 # -- Command line --------------------------------------------------------------------------------
 
 
+def _margins(text: str) -> tuple[float, ...]:
+    try:
+        margins = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected comma-separated millimetres, got {text!r}") from None
+    if not margins or any(not 0 <= m < 300 for m in margins):
+        raise argparse.ArgumentTypeError(f"each margin must be in [0, 300) mm, got {text!r}")
+    return margins
+
+
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -468,6 +510,12 @@ def main(argv=None) -> None:
     parser.add_argument("--arena", default=DEFAULT_ARENA, help="arena name or .json path (default 'default')")
     parser.add_argument("--max-leg-steps", type=int, default=DEFAULT_MAX_LEG_STEPS,
                         help=f"step limit of one leg (default {DEFAULT_MAX_LEG_STEPS})")
+    parser.add_argument("--safety-margins-mm", type=_margins, default=DEFAULT_MARGINS, metavar="M0,M1,...",
+                        help="evolution stages: a simulator where a motion that ends closer than M to "
+                             "an obstacle is a crash; the next stage starts when the best reaches every "
+                             f"target (default {','.join(f'{m:g}' for m in DEFAULT_MARGINS)})")
+    parser.add_argument("--transfer-trials", type=int, default=TRANSFER_TRIALS,
+                        help=f"noisy-world runs of the best controller (default {TRANSFER_TRIALS})")
     parser.add_argument("--no-plots", action="store_true", help="skip the figures")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.add_argument("--table", nargs="+", type=Path, metavar="SUMMARY",
@@ -479,7 +527,7 @@ def main(argv=None) -> None:
     summary = run_offline(
         args.seed, generations_cap=args.generations_cap, workers=args.workers, resume=args.resume,
         out=args.out, arena=args.arena, max_leg_steps=args.max_leg_steps, progress=not args.quiet,
-        plots=not args.no_plots,
+        plots=not args.no_plots, margins=args.safety_margins_mm, transfer_trials=args.transfer_trials,
     )
     _WORLDS.clear()  # free the pymunk spaces now, not during interpreter shutdown
     keys = ("seed", "reached_all_targets", "targets_reached", "generations", "genetic_operations",
