@@ -67,10 +67,13 @@ def main(argv=None) -> None:
     p.add_argument("summary", type=Path)
     p.add_argument("--trials", type=int, default=20)
     p.add_argument("--first-seed", type=int, default=900_000)
+    p.add_argument("--max-leg-steps", type=int, default=None,
+                   help="the leg time-out of the noisy runs (default: the evolution's, from the summary)")
     args = p.parse_args(argv)
     summary = json.loads(args.summary.read_text())
     cfg = summary["config"]
-    rows = diagnose(summary["best_genome"], cfg["arena"], cfg["max_leg_steps"], args.trials, args.first_seed)
+    rows = diagnose(summary["best_genome"], cfg["arena"], args.max_leg_steps or cfg["max_leg_steps"],
+                    args.trials, args.first_seed)
     for r in rows:
         print(json.dumps(r))
     fails = [r for r in rows if r["kind"] != "none"]
