@@ -51,15 +51,7 @@ DEFAULT_ARENA = "default"
 DEFAULT_GENERATIONS_CAP = 3000
 # Step limit of one leg: see docs/offline.md for the measurements behind it.
 DEFAULT_MAX_LEG_STEPS = 150
-TRANSFER_TRIALS = 20  # noisy-world runs of the best controller, noise seeds seed*1000 + i
-# The robustness stage (docs/offline.md, round 2): after the best has reached every target in the
-# noise-free world, evolution goes on in the noisy world (DEFAULT_NOISE, one noise seed a
-# generation shared by the whole population), until a best individual that reached every target
-# there also does so on ROBUST_TRIALS further noisy runs of its own. 0: no robustness stage.
-ROBUST_TRIALS = 10
-# Safety-margin stages before it (sim_world.world.World.bumper_margin_mm): the noise-free stage runs
-# at margins[0] until the best reaches every target, then at margins[1], and so on.
-DEFAULT_MARGINS = (0.0,)
+TRANSFER_TRIALS = 10  # noisy-world runs of the best controller, noise seeds seed*1000 + i
 
 def default_ga_config(**overrides) -> GAConfig:
     """Paper section 5.1: population 20, tournament 5, elitism 1; our operator rates, plus the
@@ -111,25 +103,13 @@ def evaluate(world, rows, max_leg_steps: int, n_targets: int = N_TARGETS, reflex
 _WORLDS: dict = {}
 
 
-def _world(arena: str, noise_seed: int | None = None, margin_mm: float = 0.0):
-    """The process's world for ``arena``: noise-free, or noisy and re-seeded with ``noise_seed``."""
-    from sim_world.world import DEFAULT_NOISE, World
+def _world(arena: str):
+    from sim_world.world import World
 
-    noisy = noise_seed is not None
-    world = _WORLDS.get((arena, noisy, margin_mm))
+    world = _WORLDS.get(arena)
     if world is None:
-        world = _WORLDS[arena, noisy, margin_mm] = World(_load_arena(arena), noise=DEFAULT_NOISE if noisy else None,
-                                                         bumper_margin_mm=margin_mm)
-    if noisy:
-        world.reset(noise_seed)
+        world = _WORLDS[arena] = World(_load_arena(arena))
     return world
-
-
-def evolution_noise_seed(seed: int, generation: int, trial: int = -1) -> int:
-    """The noise seed of a robustness-stage evaluation: generation ``generation``'s shared run
-    (trial -1) or a validation run. Drawn from its own SeedSequence, so never a transfer seed's
-    stream (those are ``seed * 1000 + i``, plain integers)."""
-    return int(np.random.SeedSequence([0x0FF11E, seed, generation, trial + 1]).generate_state(1)[0])
 
 
 def _load_arena(arena: str):
@@ -140,8 +120,8 @@ def _load_arena(arena: str):
 
 
 def _evaluate_one(task) -> Evaluation:
-    arena, noise_seed, margin_mm, max_leg_steps, n_targets, rows = task
-    return evaluate(_world(arena, noise_seed, margin_mm), rows, max_leg_steps, n_targets)
+    arena, max_leg_steps, n_targets, rows = task
+    return evaluate(_world(arena), rows, max_leg_steps, n_targets)
 
 
 class Evaluator:
@@ -151,10 +131,6 @@ class Evaluator:
                  cache_size: int = 4096):
         self.cache_size = cache_size  # truth tables remembered (about 200 generations of 20)
         self.arena, self.max_leg_steps, self.n_targets = arena, max_leg_steps, n_targets
-        # None: the noise-free world (runs are stored by truth table); an int: every genome drives
-        # the noisy world from this noise seed (common random numbers: the same noise for all).
-        self.noise_seed: int | None = None
-        self.margin_mm = 0.0  # the simulator's safety margin (World.bumper_margin_mm)
         self.workers = max(int(workers), 1)
         self._pool = None
         self._cache: dict[bytes, Evaluation] = {}
@@ -173,18 +149,12 @@ class Evaluator:
         being driven again: the same result, and `interactions` still counts it (paper: every
         individual of every generation). ``simulated_steps`` counts what was really driven.
         """
-        if self.noise_seed is not None:  # noisy: nothing to store, every run is driven
-            tasks = [(self.arena, self.noise_seed, 0.0, self.max_leg_steps, self.n_targets, rows) for rows in pop]
-            fresh = list(self._pool.map(_evaluate_one, tasks)) if self._pool else [_evaluate_one(t) for t in tasks]
-            self.simulated_steps += sum(e.steps for e in fresh)
-            return fresh
         keys = [t.tobytes() for t in truth_tables(pop, reflex=True)]
         todo = {}
         for key, rows in zip(keys, pop):
             if key not in self._cache and key not in todo:
                 todo[key] = rows
-        tasks = [(self.arena, None, self.margin_mm, self.max_leg_steps, self.n_targets, rows)
-                 for rows in todo.values()]
+        tasks = [(self.arena, self.max_leg_steps, self.n_targets, rows) for rows in todo.values()]
         if self._pool is None:
             fresh = [_evaluate_one(t) for t in tasks]
         else:
@@ -196,11 +166,6 @@ class Evaluator:
         self._cache.update(zip(todo, fresh))
         self.simulated_steps += sum(e.steps for e in fresh)
         return [found[key] for key in keys]
-
-    def set_margin(self, margin_mm: float) -> None:
-        """Evaluate in a simulator with another safety margin from now on (forgets the stored runs)."""
-        self.margin_mm = float(margin_mm)
-        self._cache.clear()
 
     def close(self) -> None:
         if self._pool is not None:
@@ -222,15 +187,12 @@ def _arena_digest(arena: str) -> str:
     return hashlib.sha256(data.encode()).hexdigest()[:16]
 
 
-def run_config(seed: int, arena: str, max_leg_steps: int, n_targets: int, ga_config: GAConfig,
-               robust_trials: int = ROBUST_TRIALS, margins=DEFAULT_MARGINS) -> dict:
+def run_config(seed: int, arena: str, max_leg_steps: int, n_targets: int, ga_config: GAConfig) -> dict:
     """The parameters that define a run: a checkpoint resumes only under the same ones."""
     return {
         "seed": int(seed),
         "arena": str(arena),
         "arena_sha256_16": _arena_digest(arena),
-        "robust_trials": int(robust_trials),
-        "safety_margins_mm": [float(m) for m in margins],
         "max_leg_steps": int(max_leg_steps),
         "n_targets": int(n_targets),
         "ga": ga_config.to_dict(),
@@ -265,8 +227,6 @@ def run_offline(
     plots: bool = True,
     transfer_trials: int = TRANSFER_TRIALS,
     on_generation: Callable[[dict], None] | None = None,
-    robust_trials: int = ROBUST_TRIALS,
-    margins=DEFAULT_MARGINS,
 ) -> dict:
     """Run (or, with ``resume``, continue) the model-free experiment; return the summary dict.
 
@@ -279,10 +239,7 @@ def run_offline(
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     ga_config = ga_config or default_ga_config()
-    if robust_trials < 0:
-        raise ValueError(f"robust_trials must be >= 0, got {robust_trials!r}")
-    margins = tuple(float(m) for m in margins) or (0.0,)
-    config = run_config(seed, arena, max_leg_steps, n_targets, ga_config, robust_trials, margins)
+    config = run_config(seed, arena, max_leg_steps, n_targets, ga_config)
     ck_path = out / "checkpoint.json"
     if resume and ck_path.exists():
         state = load_checkpoint(ck_path, KIND, config)
@@ -295,55 +252,15 @@ def run_offline(
     t_session = time.perf_counter()
     wall_before = state["wall_time_s"]
 
-    state.setdefault("stage", 0)  # index into margins
-    state.setdefault("stages", [])
-    state.setdefault("robust", None)  # None: noise-free stage; else the robustness stage's record
-    state.setdefault("validated", [])  # genomes (hex) that failed a validation: not tried again
-
-    def solved() -> bool:
+    def finished() -> bool:
         best = state["best"]
         return best is not None and best["targets_reached"] >= n_targets
-
-    def finished() -> bool:
-        robust = state["robust"]
-        if state["stage"] < len(margins) - 1:
-            return False
-        if not robust_trials:
-            return solved()
-        return robust is not None and robust.get("accepted") is not None
-
-    def validate(genome_hex: str) -> bool:
-        """ROBUST_TRIALS noisy runs of one genome: does it reach every target on all of them?
-        Stops at the first failure; every step is counted as an interaction."""
-        rows = rows_from_hex(genome_hex)
-        for trial in range(robust_trials):
-            e = evaluate(_world(arena, evolution_noise_seed(seed, ga.generation, trial)), rows,
-                         max_leg_steps, n_targets)
-            state["interactions"] += e.steps
-            state["simulated_interactions"] += e.steps
-            state["robust"]["validation_interactions"] += e.steps
-            if e.targets_reached < n_targets:
-                return False
-        return True
 
     bar = tqdm(total=generations_cap, initial=min(ga.generation, generations_cap), disable=not progress,
                desc=f"model-free seed {seed}", unit="gen", dynamic_ncols=True)
     try:
         with Evaluator(arena, max_leg_steps, n_targets, workers) as evaluator:
-            evaluator.set_margin(margins[state["stage"]])
             while not finished() and ga.generation < generations_cap:
-                if state["robust"] is None and solved() and state["stage"] < len(margins) - 1:
-                    state["stages"].append({"margin_mm": margins[state["stage"]], "generation": ga.generation,
-                                            "interactions": state["interactions"]})
-                    state["stage"] += 1
-                    evaluator.set_margin(margins[state["stage"]])
-                    state["best"] = None
-                if robust_trials and state["robust"] is None and solved():
-                    # every target in the noise-free world: on to the noisy one
-                    state["robust"] = {"from_generation": ga.generation, "from_interactions": state["interactions"],
-                                       "validations": 0, "validation_interactions": 0, "accepted": None}
-                if state["robust"] is not None:
-                    evaluator.noise_seed = evolution_noise_seed(seed, ga.generation)
                 pop = ga.ask()
                 driven = evaluator.simulated_steps
                 evals = evaluator(pop)
@@ -375,18 +292,7 @@ def run_offline(
                     "world_states": len(states),
                     "transitions": len({(t[0], t[1]) for t in transitions}),
                     "transition_outcomes": len(transitions),
-                    "noisy": state["robust"] is not None,
                 }
-                robust = state["robust"]
-                if robust is not None and best.targets_reached >= n_targets:
-                    genome = state["best"]["genome"]
-                    if genome not in state["validated"]:
-                        robust["validations"] += 1
-                        if validate(genome):
-                            robust["accepted"] = {"generation": ga.generation, "genome": genome}
-                        else:
-                            state["validated"].append(genome)
-                        entry["interactions"] = state["interactions"]
                 state["history"].append(entry)
                 state["ga"] = ga.state_dict()
                 state["world_states"] = sorted(states)
@@ -402,9 +308,6 @@ def run_offline(
         bar.close()
 
     summary = _summary(seed, state, config, ga_config, workers, finished())
-    if state["robust"] is not None:
-        summary["robust"] = state["robust"]
-    summary["stages"] = state["stages"]
     if transfer_trials:
         summary["transfer"] = transfer(summary["best_genome"], arena, max_leg_steps, n_targets, seed,
                                        transfer_trials)
@@ -553,16 +456,6 @@ def seeds_table(summaries: list[dict]) -> str:
 # -- Command line --------------------------------------------------------------------------------
 
 
-def _margins(text: str) -> tuple[float, ...]:
-    try:
-        margins = tuple(float(v) for v in text.split(","))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected comma-separated millimetres, got {text!r}") from None
-    if not margins or any(not 0 <= m < 300 for m in margins):
-        raise argparse.ArgumentTypeError(f"each margin must be in [0, 300) mm, got {text!r}")
-    return margins
-
-
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -575,16 +468,6 @@ def main(argv=None) -> None:
     parser.add_argument("--arena", default=DEFAULT_ARENA, help="arena name or .json path (default 'default')")
     parser.add_argument("--max-leg-steps", type=int, default=DEFAULT_MAX_LEG_STEPS,
                         help=f"step limit of one leg (default {DEFAULT_MAX_LEG_STEPS})")
-    parser.add_argument("--robust-trials", type=int, default=ROBUST_TRIALS,
-                        help="after the noise-free stage, evolve in the noisy world until a best that "
-                             "reached every target there does so on this many more noisy runs "
-                             f"(0: no such stage; default {ROBUST_TRIALS})")
-    parser.add_argument("--safety-margins-mm", type=_margins, default=DEFAULT_MARGINS, metavar="M0,M1,...",
-                        help="noise-free stages in a simulator where a motion that ends closer than M "
-                             "to an obstacle is a crash; the next starts when the best reaches every "
-                             f"target (default {','.join(f'{m:g}' for m in DEFAULT_MARGINS)})")
-    parser.add_argument("--transfer-trials", type=int, default=TRANSFER_TRIALS,
-                        help=f"noisy-world runs of the best controller at the end (default {TRANSFER_TRIALS})")
     parser.add_argument("--no-plots", action="store_true", help="skip the figures")
     parser.add_argument("--quiet", action="store_true", help="no progress bar")
     parser.add_argument("--table", nargs="+", type=Path, metavar="SUMMARY",
@@ -596,7 +479,7 @@ def main(argv=None) -> None:
     summary = run_offline(
         args.seed, generations_cap=args.generations_cap, workers=args.workers, resume=args.resume,
         out=args.out, arena=args.arena, max_leg_steps=args.max_leg_steps, progress=not args.quiet,
-        plots=not args.no_plots, robust_trials=args.robust_trials, margins=args.safety_margins_mm, transfer_trials=args.transfer_trials,
+        plots=not args.no_plots,
     )
     _WORLDS.clear()  # free the pymunk spaces now, not during interpreter shutdown
     keys = ("seed", "reached_all_targets", "targets_reached", "generations", "genetic_operations",

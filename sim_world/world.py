@@ -174,16 +174,10 @@ class World:
     """The simulated robot in an arena. Noise-free unless ``noise`` is given; seeded by ``seed``."""
 
     def __init__(self, arena: Arena | str | None = None, noise: Noise | None = None, faults=(), seed=None,
-                 cache: bool = True, bumper_margin_mm: float = 0.0):
+                 cache: bool = True):
         if arena is None or isinstance(arena, str):
             arena = load_arena(arena or "default")
-        if not (isinstance(bumper_margin_mm, (int, float)) and 0.0 <= bumper_margin_mm < IR_RANGE_MM):
-            raise ValueError(f"bumper_margin_mm must be in [0, {IR_RANGE_MM}), got {bumper_margin_mm!r}")
         self.arena = arena
-        # A simulator's safety margin (the off-line evolution's): a motion that ends closer than
-        # this to an obstacle counts as a crash. 0 for the robot's own bumper.
-        self.bumper_margin_mm = float(bumper_margin_mm)
-        self._crash_radius = ROBOT_RADIUS_MM + self.bumper_margin_mm
         self.noise = None if noise is None or noise.is_zero else noise
         self.faults = tuple(faults)
         for f in self.faults:
@@ -410,10 +404,9 @@ class World:
         """
         n = max(1, math.ceil(math.hypot(x1 - x0, y1 - y0) / BUMPER_SAMPLE_MM))
         dx, dy = (x1 - x0) / n, (y1 - y0) / n
-        radius = self._crash_radius
-        limit = radius - 1e-6
+        limit = ROBOT_RADIUS_MM - 1e-6
         for i in range(1, n + 1):
-            d = self._nearest_query((x0 + i * dx, y0 + i * dy), radius)
+            d = self._nearest_query((x0 + i * dx, y0 + i * dy), ROBOT_RADIUS_MM)
             if d is not None and d < limit:
                 return True
         return False
@@ -435,7 +428,7 @@ class World:
         if t:
             x1, y1 = x0 + t * math.cos(hm), y0 + t * math.sin(hm)
             # Far from everything (clearance known from sensing) no bumper test is needed.
-            if self._clearance <= self._crash_radius + abs(t) + 1e-6:
+            if self._clearance <= ROBOT_RADIUS_MM + abs(t) + 1e-6:
                 crashed = self.bumper_hits(x0, y0, x1, y1)
         else:
             x1, y1 = x0, y0

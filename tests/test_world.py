@@ -377,20 +377,3 @@ def test_course_run_from_a_position_relocates_to_the_next_one():
     assert len(relocations) == 1
     x, y, _, _ = res.trajectory[relocations[0]]
     assert (x, y) == pytest.approx(tuple(world.arena.positions[6][:2]))
-
-
-def test_bumper_margin_makes_a_near_miss_a_crash():
-    """World(bumper_margin_mm=m): a motion ending closer than m to an obstacle is a crash (the
-    off-line evolution's safety margin); sensing is unchanged."""
-    from sim_world.arena import ROBOT_RADIUS_MM, load_arena
-
-    arena = load_arena("empty")
-    x, y = ROBOT_RADIUS_MM + 60.0, 2000.0  # facing the left wall, 60 mm from it
-    plain, careful = World(arena), World(arena, bumper_margin_mm=20.0)
-    for world in (plain, careful):
-        world.place((x, y, math.pi))
-    assert plain.state() == careful.state()
-    assert not plain.step(0).crashed  # 10 mm left after a 5 cm step
-    assert careful.step(0).crashed and careful.pose[:2] == (x, y)
-    with pytest.raises(ValueError, match="bumper_margin_mm"):
-        World(arena, bumper_margin_mm=-1.0)
