@@ -29,6 +29,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from cosim import online as online_mod  # noqa: E402
 from cosim.online import OnlineConfig, OnlineRun, make_run  # noqa: E402
+from ga.motions import OBSTACLE_MASK  # noqa: E402
 from ga.truth_table import truth_tables  # noqa: E402
 
 DEFAULT_OUT = Path("build/experiments/round6.jsonl")
@@ -71,21 +72,48 @@ class Variant(OnlineRun):
         self.visits[self.state] += 1
         return super().step(motion, record)
 
+    def blame_table(self) -> np.ndarray:
+        """(256, 8): how often each obstacle (state, motion) was blamed for a loop or time-out."""
+        table = np.zeros((256, 8), dtype=np.int64)
+        for p in self.phases:
+            if p["reason"] in ("timeout", "loop") and p["state"] & OBSTACLE_MASK:
+                table[p["state"], p["motion"]] += 1
+        return table
+
     def learn(self, *args, **kwargs):
         v = self.variant
-        saved = online_mod.choose_download
+        saved = online_mod.choose_download, online_mod.model_fitness, self.evaluator
         if v.startswith("closest"):
             online_mod.choose_download = _closest_factory(self, inject=v.endswith("inject"))
+        if v.startswith("tabu"):
+            blame = self.blame_table()
+            if v == "tabu_bool":
+                blame = (blame > 0).astype(np.int64)
+            board, last = self.evaluator, {}
+
+            class Spy:
+                def evaluate(self_, pop):
+                    last["pop"] = pop
+                    return board.evaluate(pop)
+
+            def fitness(counts, n_states):
+                # lexicographic tie-break under the SPEC fitness: its smallest step is 0.1 / N
+                tables = truth_tables(last["pop"], reflex=self.config.reflex)
+                score = blame[np.arange(256)[None, :], tables].sum(axis=1)
+                return saved[1](counts, n_states) - 0.05 / max(n_states, 1) * score / (score.max() + 1)
+
+            self.evaluator = Spy()
+            online_mod.model_fitness = fitness
         try:
             super().learn(*args, **kwargs)
         finally:
-            online_mod.choose_download = saved
+            online_mod.choose_download, online_mod.model_fitness, self.evaluator = saved
         if self.inject is not None:  # keep the downloaded controller in the next population
             self.ga._population[-1] = self.inject
             self.inject = None
 
 
-VARIANTS = ("default", "closest", "closest_inject")
+VARIANTS = ("default", "closest", "closest_inject", "tabu", "tabu_bool")
 
 
 def lost(phases, target_log) -> int:
