@@ -37,7 +37,8 @@ ADAPT_WINDOW = 8
 
 
 def _online(task: dict) -> dict:
-    from cosim.online import OnlineConfig, make_run, write_results
+    from cosim.online import OnlineConfig, make_run
+    from cosim.online_report import write_results
 
     config = OnlineConfig(seed=task["seed"], arena=task["arena"], **task.get("online", {}))
     out = Path(task["out"]) / "model_based" / f"seed_{task['seed']}"

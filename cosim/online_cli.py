@@ -18,7 +18,8 @@ from pathlib import Path
 
 from cosim.boards import BACKENDS, BackendUnavailable, launcher
 from cosim.checkpoint import CheckpointError
-from cosim.online import OnlineConfig, make_run
+from cosim.online import make_run
+from cosim.online_config import OnlineConfig
 from ga.motions import DISTANCE_RULES
 
 DEFAULT_OUT = Path("results/model_based")
@@ -39,8 +40,17 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
                    help="go on for N more targets after the 64th (Fig. 11)")
     p.add_argument("--blind-bit", type=int, default=None, metavar="B", help="IR bit 0..5 to blind (stuck at 0)")
     p.add_argument("--blind-after-target", type=int, default=None, metavar="T")
+    p.add_argument("--noise", action=argparse.BooleanOptionalAction, default=d.noise,
+                   help="the noisy 'real' world (sim_world.world.DEFAULT_NOISE)")
+    p.add_argument("--reflex", action=argparse.BooleanOptionalAction, default=d.reflex,
+                   help="the reflex in free space (SPEC section 6)")
     p.add_argument("--population", type=int, default=d.population)
+    p.add_argument("--tournament", type=int, default=d.tournament)
+    p.add_argument("--elitism", type=int, default=d.elitism)
     p.add_argument("--generations-per-phase", type=int, default=d.generations_per_phase)
+    for rate in ("crossover_rate", "literal_rate", "output_rate", "switch_rate", "replace_rate"):
+        p.add_argument("--" + rate.replace("_", "-"), type=float, default=getattr(d, rate), metavar="P",
+                       help="GA rate (ga.evolution.GAConfig)")
     p.add_argument("--max-leg-steps", type=int, default=d.max_leg_steps, help="leg time-out (steps)")
     p.add_argument("--loop-window", type=int, default=d.loop_window,
                    help="stop a leg after this many steps without a new closest approach (0: off)")
@@ -70,7 +80,10 @@ def config_from_args(args) -> OnlineConfig:
     """The OnlineConfig of parsed options (ValueError naming the option for a bad value)."""
     return OnlineConfig(
         seed=args.seed, arena=args.arena, n_targets=args.targets + args.continue_past_64,
-        population=args.population, generations_per_phase=args.generations_per_phase,
+        noise=args.noise, reflex=args.reflex, population=args.population,
+        tournament=args.tournament, elitism=args.elitism, generations_per_phase=args.generations_per_phase,
+        crossover_rate=args.crossover_rate, literal_rate=args.literal_rate, output_rate=args.output_rate,
+        switch_rate=args.switch_rate, replace_rate=args.replace_rate,
         max_leg_steps=args.max_leg_steps, loop_window=args.loop_window,
         loop_reentries=args.loop_reentries, loop_repeats=args.loop_repeats,
         loop_radius_mm=args.loop_radius_mm, loop_cycles=args.loop_cycles, distance_rule=args.distance,

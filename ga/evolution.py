@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ga import operators
-from ga.genome import N_ROWS, ROW_DTYPE, hex_from_rows, rows_from_hex, validate_rows
+from ga.genome import ROW_DTYPE, hex_from_rows, rows_from_hex, validate_rows
 from ga.motions import REFLEX_TABLE
 
 STATE_FORMAT = 1  # bump when the layout of state_dict changes

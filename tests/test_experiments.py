@@ -6,8 +6,6 @@ import importlib.util
 import json
 from pathlib import Path
 
-import pytest
-
 EXPERIMENTS = Path(__file__).resolve().parent.parent / "experiments"
 
 
@@ -24,7 +22,8 @@ def test_online_table_writes_the_table_and_reuses_finished_runs(tmp_path, capsys
     argv = ["round5", "--seeds", "1,2", "--budget", "60", "--rows", "the default now", "--out", str(out)]
     assert table.main(argv) == 0
     runs = [json.loads(line) for line in out.read_text().splitlines()]
-    assert [(r["seed"], r["interactions"]) for r in runs] == [(1, 60), (2, 60)]
+    assert [r["seed"] for r in runs] == [1, 2]
+    assert all(r["targets"] < 64 and r["interactions"] in (60, 61) for r in runs)  # the budget (a target may add one)
     assert sum(runs[0]["stops"].values()) == sum(runs[0]["phase_reasons"].values())
     text = (tmp_path / "round5.md").read_text()
     assert "Command: `python experiments/online_table.py round5 --seeds 1,2 --budget 60" in text

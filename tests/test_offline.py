@@ -96,8 +96,7 @@ def test_command_line_writes_summary_figures_and_transfer(tmp_path, capsys):
 def test_evaluator_cache_gives_the_driven_result():
     import numpy as np
 
-    from cosim.offline import Evaluator
-    from cosim.offline import evaluate
+    from cosim.offline import Evaluator, evaluate
     from ga.operators import random_population
     from sim_world.world import World
 

@@ -13,6 +13,7 @@ from cosim.boards import (
     make_boards,
 )
 from cosim.online import OnlineConfig, OnlineRun, make_run
+from cosim.online_config import option
 from cosim.online_cli import build_parser, config_from_args, main
 from cosim.online_report import adaptation_figures, summary_table
 from ga.genome import validate_rows
@@ -217,6 +218,9 @@ def test_defaults_and_command_line():
     """SPEC section 7's defaults; ``--distance covered --loop-cycles 0`` is the first reading."""
     default = config_from_args(build_parser().parse_args([]))
     assert default == OnlineConfig()
+    options = {a.dest for a in build_parser()._actions}
+    for field in OnlineConfig().to_dict():  # every field has its option (named in the errors)
+        assert option(field).lstrip("-").replace("-", "_") in options | {"targets"}, field
     assert (default.distance_rule, default.loop_cycles) == ("forward", 1)
     args = build_parser().parse_args(["--distance", "covered", "--loop-cycles", "0", "--no-escape",
                                       "--continue-past-64", "3", "--loop-radius-mm", "40"])
