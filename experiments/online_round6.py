@@ -67,6 +67,8 @@ class Variant(OnlineRun):
         super().__init__(*a, **k)
         self.visits = np.zeros(256, dtype=np.int64)
         self.inject = None
+        self.cycles: list[tuple] = []
+        self.cycle_vetoes = 0
 
     def step(self, motion, record=True):
         self.visits[self.state] += 1
@@ -80,9 +82,41 @@ class Variant(OnlineRun):
                 table[p["state"], p["motion"]] += 1
         return table
 
+    def remember_cycle(self) -> None:
+        """After a loop stop: the obstacle (state, motion) pairs of the last cycle back to the
+        current state (the smallest p with pairs[-p] in it), kept for the lifetime."""
+        w, now = list(self.track.pairs), self.track.state
+        for p in range(2, min(len(w), 40) + 1):
+            if w[-p][0] == now:
+                sig = tuple(sorted({(s, a) for s, a in w[-p:] if s & OBSTACLE_MASK}))
+                if sig and sig not in self.cycles:
+                    self.cycles.append(sig)
+                return
+
+    def cycle_choice(self, base):
+        def choose(pop, fitness, blamed=None, reflex=True):
+            i, escaped = base(pop, fitness, blamed, reflex)
+            if not self.cycles:
+                return i, escaped
+            tables = truth_tables(pop, reflex=reflex)
+            repro = np.zeros(len(pop), dtype=np.int64)
+            for sig in self.cycles:
+                st = np.array([s for s, _ in sig]); mo = np.array([a for _, a in sig])
+                repro += (tables[:, st] == mo).all(axis=1)
+            if repro[i] == repro.min():
+                return i, escaped
+            ok = np.flatnonzero(repro == repro.min())
+            self.cycle_vetoes += 1
+            return int(ok[np.argmax(fitness[ok])]), escaped
+        return choose
+
     def learn(self, *args, **kwargs):
         v = self.variant
         saved = online_mod.choose_download, online_mod.model_fitness, self.evaluator
+        if v == "cyclemem":
+            if args[0] == "loop":
+                self.remember_cycle()
+            online_mod.choose_download = self.cycle_choice(saved[0])
         if v.startswith("closest"):
             online_mod.choose_download = _closest_factory(self, inject=v.endswith("inject"))
         if v.startswith("tabu"):
@@ -113,7 +147,7 @@ class Variant(OnlineRun):
             self.inject = None
 
 
-VARIANTS = ("default", "closest", "closest_inject", "tabu", "tabu_bool")
+VARIANTS = ("default", "closest", "closest_inject", "tabu", "tabu_bool", "cyclemem")
 
 
 def lost(phases, target_log) -> int:
@@ -144,7 +178,8 @@ def run_one(variant: str, seed: int, budget: int, settings: dict) -> dict:
             "transitions": s["transitions"], "phases": len(v.phases),
             "reasons": dict(Counter(p["reason"] for p in v.phases)),
             "lost": lost(v.phases, v.target_log), "first_leg": first,
-            "wall_s": round(time.perf_counter() - t0, 1)}
+            "wall_s": round(time.perf_counter() - t0, 1),
+            "cycles_remembered": len(v.cycles), "cycle_vetoes": v.cycle_vetoes}
 
 
 def seeds_of(text: str) -> list[int]:
