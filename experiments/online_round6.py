@@ -69,6 +69,7 @@ class Variant(OnlineRun):
         self.inject = None
         self.cycles: list[tuple] = []
         self.cycle_vetoes = 0
+        self.cycles_target = 0
 
     def step(self, motion, record=True):
         self.visits[self.state] += 1
@@ -113,7 +114,9 @@ class Variant(OnlineRun):
     def learn(self, *args, **kwargs):
         v = self.variant
         saved = online_mod.choose_download, online_mod.model_fitness, self.evaluator
-        if v == "cyclemem":
+        if v.startswith("cyclemem"):
+            if v == "cyclemem_leg" and self.targets != self.cycles_target:
+                self.cycles, self.cycles_target = [], self.targets
             if args[0] == "loop":
                 self.remember_cycle()
             online_mod.choose_download = self.cycle_choice(saved[0])
@@ -147,7 +150,7 @@ class Variant(OnlineRun):
             self.inject = None
 
 
-VARIANTS = ("default", "closest", "closest_inject", "tabu", "tabu_bool", "cyclemem")
+VARIANTS = ("default", "closest", "closest_inject", "tabu", "tabu_bool", "cyclemem", "cyclemem_leg")
 
 
 def lost(phases, target_log) -> int:
