@@ -72,22 +72,6 @@ def test_resume_equals_uninterrupted(tmp_path, options):
     assert resumed.motions == whole.motions
 
 
-def test_loop_memory_vetoes_downloads_and_resumes_from_the_records(tmp_path):
-    config = OnlineConfig(seed=5, **{**SMALL, "loop_window": 15, "loop_memory": True})
-    whole = make_run(config, out=tmp_path / "whole").run()
-    vetoed = [p for p in whole.phases if p.get("loop_vetoed")]
-    assert vetoed and all(p["reason"] in ("crash", "loop", "timeout") for p in vetoed)
-    assert all(tuple(map(tuple, p["loop"])) for p in whole.phases if "loop" in p)
-    # resumed after the 6th phase, in the middle of a leg whose memory holds two loops
-    part = make_run(config, out=tmp_path / "part").run(stop_after_phases=6)
-    assert len(part.leg_loops) == 2 and part.phases[-1]["targets"] == part.targets
-    resumed = make_run(config, out=tmp_path / "part", resume=True)
-    assert resumed.leg_loops == part.leg_loops
-    resumed.run()
-    assert resumed.motions == whole.motions and _figures(resumed) == _figures(whole)
-    assert whole.motions != make_run(OnlineConfig(seed=5, **{**SMALL, "loop_window": 15})).run().motions
-
-
 def test_resume_refuses_another_config(tmp_path):
     from cosim.checkpoint import CheckpointError
 
