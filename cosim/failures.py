@@ -229,18 +229,6 @@ class Cycles:
         return False
 
 
-def last_cycle(pairs, state: int, longest: int = 40) -> tuple[tuple[int, int], ...]:
-    """The loop a stop ended: the obstacle (state, motion) pairs (sorted, distinct) of the last
-    ``p`` pairs, ``p`` >= 2 the smallest with ``pairs[-p]`` in ``state``, the state the robot is
-    in (at most ``longest`` pairs back); () when there is none. A controller runs the same loop
-    again only if it chooses all these motions again (the free-space ones are the reflex's)."""
-    pairs = list(pairs)
-    for p in range(2, min(len(pairs), longest) + 1):
-        if pairs[-p][0] == state:
-            return tuple(sorted({(int(s), int(a)) for s, a in pairs[-p:] if s & OBSTACLE_MASK}))
-    return ()
-
-
 def blame(pairs) -> tuple[int, int]:
     """The (state, motion) a time-out or loop is blamed on: the most frequent of the recent
     ``pairs`` in a state the controller decides (some obstacle bit set; ties: the first seen),

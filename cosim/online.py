@@ -40,7 +40,7 @@ import numpy as np
 from cosim.boards import make_boards
 from cosim.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
 from cosim.download import choose_download
-from cosim.failures import Track, blame, last_cycle
+from cosim.failures import Track, blame
 from cosim.online_config import OnlineConfig
 from ga.diversity import diversity
 from ga.evaluator import fitness as model_fitness
@@ -100,8 +100,6 @@ class OnlineRun:
         # evolution counters (saved in the checkpoint)
         self.generations = self.genetic_operations = 0
         self.phases: list[dict] = []
-        self.leg_loops: list[tuple] = []  # loop memory (loop_memory): the loops met on this leg
-        self.loops_target = 0  # the leg (targets reached) the loop memory belongs to
         self.target_log: list[dict] = []
         self.best_rows: np.ndarray | None = None
         self.started = False
@@ -205,13 +203,9 @@ class OnlineRun:
             self.genetic_operations += pop.shape[0]
         fitness = self.ga.last_fitness
         escape = cfg.escape and reason in ("timeout", "loop") and state & OBSTACLE_MASK
-        loops = self._remember_loop(reason, record) if cfg.loop_memory else ()
-        i_best, escaped, vetoed = choose_download(pop, fitness, (state, motion) if escape else None,
-                                                  cfg.reflex, loops)
+        i_best, escaped = choose_download(pop, fitness, (state, motion) if escape else None, cfg.reflex)
         if escaped:
             record["escaped"] = True
-        if vetoed:
-            record["loop_vetoed"] = True
         best = pop[i_best]
         self.best_rows = best.copy()
         self.controller.load(best)
@@ -225,20 +219,6 @@ class OnlineRun:
         })
         record.update(diversity(pop, self.mirror.states))
         self.phases.append(record)
-
-    def _remember_loop(self, reason: str, record: dict) -> list:
-        """The loop memory of the current leg (``loop_memory``): forgotten at every target; after
-        a loop stop the loop just run (``cosim.failures.last_cycle``) joins it, and the record
-        keeps it (``loop``) so that a resumed run rebuilds the memory from the records."""
-        if self.loops_target != self.targets:
-            self.leg_loops, self.loops_target = [], self.targets
-        if reason == "loop":
-            loop = last_cycle(self.track.pairs, self.track.state)
-            if loop:
-                record["loop"] = [list(pair) for pair in loop]
-                if loop not in self.leg_loops:
-                    self.leg_loops.append(loop)
-        return self.leg_loops
 
     # -- the lifetime --------------------------------------------------------------------------
 
@@ -304,12 +284,6 @@ class OnlineRun:
         self.generations = int(d["generations"])
         self.genetic_operations = int(d["genetic_operations"])
         self.phases = list(d["phases"])
-        self.loops_target = self.targets
-        self.leg_loops = []
-        for p in self.phases:
-            loop = tuple(tuple(pair) for pair in p.get("loop", ()))
-            if p["targets"] == self.targets and loop and loop not in self.leg_loops:
-                self.leg_loops.append(loop)
         self.target_log = list(d["target_log"])
         self.started = bool(d["started"])
         self.wall_time_s = float(d["wall_time_s"])

@@ -71,8 +71,6 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
                    help="end the lifetime after this many interactions even short of the targets (0: never)")
     p.add_argument("--escape", action=argparse.BooleanOptionalAction, default=d.escape,
                    help="after a time-out or loop, download the best that avoids the blamed motion")
-    p.add_argument("--loop-memory", action=argparse.BooleanOptionalAction, default=d.loop_memory,
-                   help="at every download, avoid running again a loop already met on this leg")
     p.add_argument("--no-plots", action="store_true")
     p.add_argument("--no-progress", action="store_true")
     return p
@@ -89,7 +87,7 @@ def config_from_args(args) -> OnlineConfig:
         max_leg_steps=args.max_leg_steps, loop_window=args.loop_window,
         loop_reentries=args.loop_reentries, loop_repeats=args.loop_repeats,
         loop_radius_mm=args.loop_radius_mm, loop_cycles=args.loop_cycles, distance_rule=args.distance,
-        escape=args.escape, loop_memory=args.loop_memory, max_interactions=args.max_interactions,
+        escape=args.escape, max_interactions=args.max_interactions,
         blind_bit=args.blind_bit, blind_after_target=args.blind_after_target,
     )
 

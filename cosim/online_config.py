@@ -56,9 +56,6 @@ class OnlineConfig:
     # learning phase: after a time-out or loop, download the fittest individual whose motion in the
     # blamed state differs from the failed one (cosim.download; docs/online.md, round 1)
     escape: bool = True
-    # learning phase: the loop memory of a leg (cosim.download; docs/online.md, round 6): a download
-    # that would run a loop already met on this leg gives way to the fittest that would not
-    loop_memory: bool = False
     max_interactions: int = 100_000  # end the lifetime there even short of n_targets (0: no limit)
     # adaptation: blind IR bit `blind_bit` (stuck at 0) once `blind_after_target` targets are reached
     blind_bit: int | None = None
@@ -86,7 +83,7 @@ class OnlineConfig:
         check(isinstance(value, (int, float)) and math.isfinite(value) and value >= 0, "loop_radius_mm",
               "a finite distance >= 0")
         check(self.distance_rule in DISTANCE_RULES, "distance_rule", f"one of {', '.join(DISTANCE_RULES)}")
-        for field in ("noise", "reflex", "escape", "loop_memory"):
+        for field in ("noise", "reflex", "escape"):
             check(isinstance(getattr(self, field), bool), field, "True or False")
         check(isinstance(self.arena, str) and bool(self.arena), "arena", "an arena name or .json path")
         if (self.blind_bit is None) != (self.blind_after_target is None):

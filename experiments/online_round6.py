@@ -41,8 +41,8 @@ def _closest_factory(run: OnlineRun, inject: bool):
     from the running controller's in the least visited states."""
     base = online_mod.choose_download
 
-    def choose(pop, fitness, blamed=None, reflex=True, loops=()):
-        i, escaped, _ = base(pop, fitness, blamed, reflex)
+    def choose(pop, fitness, blamed=None, reflex=True):
+        i, escaped = base(pop, fitness, blamed, reflex)
         if run.best_rows is not None:
             tables = truth_tables(pop, reflex=reflex)
             ties = fitness == fitness[i]
@@ -55,7 +55,7 @@ def _closest_factory(run: OnlineRun, inject: bool):
                 i = int(index[np.argmin(cost)])
         if inject:
             run.inject = pop[i].copy()
-        return i, escaped, False
+        return i, escaped
 
     return choose
 
@@ -95,20 +95,20 @@ class Variant(OnlineRun):
                 return
 
     def cycle_choice(self, base):
-        def choose(pop, fitness, blamed=None, reflex=True, loops=()):
-            i, escaped, _ = base(pop, fitness, blamed, reflex)
+        def choose(pop, fitness, blamed=None, reflex=True):
+            i, escaped = base(pop, fitness, blamed, reflex)
             if not self.cycles:
-                return i, escaped, False
+                return i, escaped
             tables = truth_tables(pop, reflex=reflex)
             repro = np.zeros(len(pop), dtype=np.int64)
             for sig in self.cycles:
                 st = np.array([s for s, _ in sig]); mo = np.array([a for _, a in sig])
                 repro += (tables[:, st] == mo).all(axis=1)
             if repro[i] == repro.min():
-                return i, escaped, False
+                return i, escaped
             ok = np.flatnonzero(repro == repro.min())
             self.cycle_vetoes += 1
-            return int(ok[np.argmax(fitness[ok])]), escaped, True
+            return int(ok[np.argmax(fitness[ok])]), escaped
         return choose
 
     def learn(self, *args, **kwargs):

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from cosim.download import choose_download
-from cosim.failures import Cycles, LegTimeout, NoProgress, Reentries, Repeats, Track, blame, last_cycle
+from cosim.failures import Cycles, LegTimeout, NoProgress, Reentries, Repeats, Track, blame
 from ga.operators import random_population
 from ga.truth_table import truth_tables
 
@@ -134,52 +134,20 @@ def test_blame_is_the_most_frequent_obstacle_pair_else_the_last():
     assert blame([(64, 0), (65, 1)]) == (65, 1)
 
 
-def test_last_cycle_is_the_obstacle_pairs_back_to_the_current_state():
-    pairs = [(0, 0), (1, 7), (64, 2), (0, 0), (1, 7), (66, 3), (64, 2), (0, 0)]
-    assert last_cycle(pairs, 1) == ((1, 7), (66, 3))  # 1 -7-> 66 -3-> 64 -> 0 -> 1: free pairs dropped
-    assert last_cycle(pairs, 0) == ((1, 7), (66, 3))  # the smallest p with pairs[-p] in state 0
-    assert last_cycle(pairs, 64) == ()  # 64 -2-> 0 -0-> 64: free space only (the reflex's)
-    assert last_cycle(pairs, 5) == ()  # not met
-    assert last_cycle(pairs, 1, longest=3) == ()
-
-
 # -- the download -----------------------------------------------------------------------------------
 
 
 def test_download_is_the_fittest_or_the_fittest_escaping_the_blamed_motion():
     pop = random_population(np.random.default_rng(3), 12)
     fitness = np.linspace(0.1, 0.9, 12)[::-1].copy()  # individual 0 is the fittest
-    assert choose_download(pop, fitness) == (0, False, False)
+    assert choose_download(pop, fitness) == (0, False)
     motions = truth_tables(pop)[:, 5]
-    index, escaped, _ = choose_download(pop, fitness, (5, int(motions[0])))
+    index, escaped = choose_download(pop, fitness, (5, int(motions[0])))
     others = np.flatnonzero(motions != motions[0])
     assert escaped and index == others[0] and motions[index] != motions[0]
     # the fittest already avoids the blamed motion: no escape needed
     other = next(m for m in range(8) if m != motions[0])
-    assert choose_download(pop, fitness, (5, other)) == (0, False, False)
+    assert choose_download(pop, fitness, (5, other)) == (0, False)
     # nobody avoids it: the fittest
     same = np.repeat(pop[:1], 12, axis=0)
-    assert choose_download(same, fitness, (5, int(motions[0]))) == (0, False, False)
-
-
-def test_loop_memory_gives_way_to_the_fittest_that_runs_no_remembered_loop():
-    pop = random_population(np.random.default_rng(4), 16)
-    fitness = np.linspace(0.1, 0.9, 16)[::-1].copy()  # individual 0 is the fittest
-    tables = truth_tables(pop)
-    loop = ((5, int(tables[0, 5])), (9, int(tables[0, 9])))  # the fittest would run it again
-    again = (tables[:, 5] == loop[0][1]) & (tables[:, 9] == loop[1][1])
-    index, escaped, vetoed = choose_download(pop, fitness, loops=[loop])
-    assert vetoed and not escaped and index == np.flatnonzero(~again)[0]
-    # a loop the fittest does not run changes nothing
-    other = ((5, (int(tables[0, 5]) + 1) % 8),)
-    assert choose_download(pop, fitness, loops=[other]) == (0, False, False)
-    # when every individual runs it, the fittest
-    same = np.repeat(pop[:1], 16, axis=0)
-    assert choose_download(same, fitness, loops=[loop]) == (0, False, False)
-    # with the escape: the escaping individual is kept when it runs no remembered loop, else the
-    # fittest of those that run none (the memory holds the loop just stopped, see online.py)
-    blamed = (5, int(tables[0, 5]))
-    i_escape, _, _ = choose_download(pop, fitness, blamed)
-    index, escaped, vetoed = choose_download(pop, fitness, blamed, loops=[other])
-    assert escaped and vetoed == bool(tables[i_escape, 5] == other[0][1])
-    assert tables[index, 5] != other[0][1] and (vetoed or index == i_escape)
+    assert choose_download(same, fitness, (5, int(motions[0]))) == (0, False)
