@@ -17,7 +17,6 @@ from __future__ import annotations
 import argparse
 import bisect
 import json
-import statistics
 import sys
 import time
 from collections import Counter
@@ -203,14 +202,15 @@ def table(path: Path) -> str:
         r = json.loads(line)
         key = r["variant"] + "".join(f" {k}={v}" for k, v in sorted(r["settings"].items()))
         rows.setdefault(key, {})[r["seed"]] = r
-    out = ["| variant | seeds | per seed | median | lost in failed segments (median) | phases (median) |",
-           "|---|---|---|---|---|---|"]
+    out = ["| variant | per seed (seed: interactions to 64, or targets @ budget) | lost in failed segments | learning phases |",
+           "|---|---|---|---|"]
     for key, by_seed in rows.items():
         seeds = sorted(by_seed)
         rs = [by_seed[s] for s in seeds]
-        out.append(f"| {key} | {seeds[0]}-{seeds[-1]} ({len(seeds)}) | {' '.join(cell(r) for r in rs)} | "
-                   f"{statistics.median(r['interactions'] for r in rs):,.0f} | "
-                   f"{statistics.median(r['lost'] for r in rs):,.0f} | {statistics.median(r['phases'] for r in rs):,.0f} |")
+        cells = ", ".join(f"{r['seed']}: {cell(r)}" for r in rs)
+        lost_ = ", ".join(f"{r['lost']:,}" for r in rs)
+        phases = ", ".join(str(r["phases"]) for r in rs)
+        out.append(f"| {key} | {cells} | {lost_} | {phases} |")
     return "\n".join(out)
 
 
