@@ -77,3 +77,19 @@ def test_online_round6_runs_each_variant_and_tabulates(tmp_path, capsys):
     capsys.readouterr()
     assert round6.main(["--table", str(out)]) == 0
     assert "| cyclemem_leg | 1: **" in capsys.readouterr().out
+
+
+def test_online_where_accounts_for_every_interaction(capsys):
+    where = _script("online_where")
+    assert where.main(["--seed", "1", "--budget", "300"]) == 0
+    got = json.loads(capsys.readouterr().out)
+    go = got["where_interactions_go"]
+    assert got["interactions"] in (300, 301) and sum(go["per_block"]) == got["interactions"]
+    # every interaction is in a failed segment or in a leg's rest after its last failure, or after
+    # the last failure of the unfinished leg
+    assert go["in_failed_segments"] + got["clean"] <= got["interactions"]
+    assert got["loops"]["stops"] >= got["loops"]["again_in_lifetime"] >= got["loops"]["again_on_leg"]
+    assert got["states"]["met"] >= got["states"]["at_most_5"] >= got["states"]["at_most_2"] > 0
+    # 1 -7-> 64 -2-> 0 -0-> 1: the loop is its obstacle pair; the free-space pairs are the reflex's
+    assert where.last_cycle([(0, 0), (1, 7), (64, 2), (0, 0)], 1) == ((1, 7),)
+    assert where.last_cycle([(0, 0), (64, 2)], 64) == ()
