@@ -151,3 +151,18 @@ def test_bad_arguments_are_quoted():
         op.random_population(rng, 3, literal_p=1.5)
     with pytest.raises(ValueError, match="9"):
         op.set_state_motion(rng, op.random_population(rng, 1)[0], 3, 9)
+
+
+def test_diversity_counts_behaviours_and_entropy_on_the_given_states():
+    from ga.diversity import diversity
+    from ga.truth_table import truth_tables
+
+    g = op.random_population(np.random.default_rng(4), 2)
+    states = [1, 3, 65]
+    same = diversity(np.stack([g[0]] * 4), states)
+    assert same == {"distinct_behaviours": 1, "mean_entropy_bits": 0.0}
+    mixed = diversity(np.stack([g[0], g[0], g[1], g[1]]), states)
+    differ = (truth_tables(g[0]) != truth_tables(g[1]))[states]
+    assert differ.any() and mixed["distinct_behaviours"] == 2
+    assert mixed["mean_entropy_bits"] == round(differ.mean(), 4)  # 1 bit where the two differ
+    assert diversity(g, []) == {"distinct_behaviours": 0, "mean_entropy_bits": 0.0}
