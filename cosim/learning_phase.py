@@ -5,9 +5,7 @@ the NumPy GA breeds, the evaluator board evaluates every population. With ``--ga
 learning board (``cosim.boards.LearningBoard``) does both on the chip and only the download comes
 back: ``learn_on_chip`` is that phase. It keeps the default on-line options' behaviour: after a
 time-out or loop in an obstacle state the download is the fittest individual whose motion in the
-blamed state differs from the failed one (the escape, computed on the chip). Options that need the
-whole population on the host (targeted mutants, the loop penalty, the other download and escape
-variants) are refused with the hardware GA (``check_hardware_options``).
+blamed state differs from the failed one (the escape, computed on the chip).
 """
 
 from __future__ import annotations
@@ -16,21 +14,6 @@ import numpy as np
 
 from ga.evaluator import EvalResult, fitness
 from ga.motions import OBSTACLE_MASK
-
-# OnlineConfig fields (and their host-GA-only values) that --ga hardware cannot honour.
-_HOST_ONLY = {"targeted": 0, "loop_penalty": 0.0, "escape_spread": "off", "escape_memory": False,
-              "download": "first", "escape_rewrite": 0, "escape_credit": False}
-
-
-def check_hardware_options(config) -> None:
-    """Raise ValueError if ``config`` (an OnlineConfig with ga="hardware") asks for an option
-    that needs the population on the host."""
-    bad = [f"{name}={getattr(config, name)!r}" for name, plain in _HOST_ONLY.items()
-           if getattr(config, name) != plain]
-    if bad:
-        raise ValueError(f"--ga hardware keeps the population on the chip; these options need the "
-                         f"host GA: {', '.join(bad)}")
-
 
 def hardware_ga_config(config):
     """The learning engine's parameters from an OnlineConfig."""
