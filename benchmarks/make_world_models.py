@@ -1,5 +1,6 @@
 """Regenerate benchmarks/data/world_model_{100,167}.json: the world model of the on-line lifetime
-of seed 1 (reference backend, default options, host GA) when it first holds at least 100 and 167
+of seed 1 (reference backend, host GA, the default options of commit b9907d9: distance rule
+"covered", no loop-cycle detector; the stored models were made then) when it first holds at least 100 and 167
 states (the lifetime ends with 167).
 
     .venv/bin/python -m benchmarks.make_world_models      (about 3 minutes)

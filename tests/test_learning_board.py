@@ -21,10 +21,10 @@ def test_online_hardware_ga_reference_equals_amaranth():
 
 
 def test_online_hardware_ga_learns():
-    run = make_run(OnlineConfig(seed=5, ga="hardware", population=60, tournament=5, lanes=4), "reference")
-    run.run(stop_after_phases=12)
+    run = make_run(OnlineConfig(seed=5, ga="hardware"), "reference")  # population 500, 8 lanes
+    run.run(stop_after_phases=15)
     assert run.targets >= 3 and all("engine_cycles" in p for p in run.phases)
-    assert any(p.get("escaped") for p in run.phases) or all(p["reason"] == "crash" for p in run.phases)
+    assert any(p.get("escaped") for p in run.phases)
 
 
 def test_hardware_ga_option_checks(capsys):
