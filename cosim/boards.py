@@ -285,8 +285,10 @@ def make_learning_board(backend: str, config, seed: int, population, *, reflex: 
     if backend == "reference":
         return ReferenceLearningBoard(config, seed, population, reflex, distance_rule)
     if backend == "amaranth":
-        from cosim.amaranth_learning import AmaranthLearningBoard
+        # by name, as make_boards does: the backend module imports this one, not the reverse
+        import importlib
 
-        return AmaranthLearningBoard(config, seed, population, reflex, distance_rule)
+        board = importlib.import_module("cosim.amaranth_learning").AmaranthLearningBoard
+        return board(config, seed, population, reflex, distance_rule)
     raise BackendUnavailable(
         f"no learning board for backend {backend!r} yet; --ga hardware runs on {LEARNING_BACKENDS!r}")
