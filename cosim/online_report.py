@@ -37,6 +37,7 @@ def summary(run) -> dict:
                                              if p["reason"] in ("timeout", "loop")),
         "known_crash_repeats": run.known_crash_repeats,
         "crashes": reasons.get("crash", 0),
+        "where_interactions_go": interaction_breakdown(run.phases, run.target_log, run.interactions),
         "board_cycles": {"controller": int(getattr(run.controller, "cycles", 0)),
                          "evaluator": int(getattr(run.evaluator, "cycles", 0))},
         "config": cfg.to_dict(), "phases": run.phases, "targets": run.target_log,
@@ -47,6 +48,39 @@ def summary(run) -> dict:
         out["adaptation"] = adaptation_figures(run.target_log, cfg.blind_after_target, run.blinded_at)
     out["hardware"] = hardware_figures(run)
     return out
+
+
+def interaction_breakdown(phases: list[dict], target_log: list[dict], interactions: int,
+                          block: int = 16) -> dict:
+    """Where a lifetime's interactions went (docs/online.md, round 6).
+
+    - ``in_failed_segments``: the steps from the later of the last target and the last failure
+      up to each failure (crash or stop), i.e. what the failures cost; ``per_failure`` its mean;
+    - ``first_leg``: the interactions to the first target (from the random start);
+    - ``per_block``: the interactions for each ``block`` targets (1-16, 17-32, ...; after
+      the last target, one more entry up to the end of the lifetime);
+    - ``repeated_blames``: time-outs and loop stops blamed on a (state, motion) already blamed
+      for one earlier in the lifetime.
+    """
+    at = [t["interactions"] for t in target_log]
+    lost, last = 0, 0
+    for p in phases:
+        i = p["interactions"]
+        reached = [t for t in at if t <= i]
+        lost += i - max(last, reached[-1] if reached else 0)
+        last = i
+    blamed, repeated = set(), 0
+    for p in phases:
+        if p["reason"] in ("timeout", "loop"):
+            pair = (p["state"], p["motion"])
+            repeated += pair in blamed
+            blamed.add(pair)
+    ends = at + ([interactions] if not at or at[-1] < interactions else [])
+    per_block = [ends[min(k + block, len(ends)) - 1] - (ends[k - 1] if k else 0)
+                 for k in range(0, len(ends), block)]
+    return {"in_failed_segments": lost, "per_failure": round(lost / len(phases), 2) if phases else 0.0,
+            "first_leg": at[0] if at else interactions, "per_block": per_block, "block": block,
+            "repeated_blames": repeated}
 
 
 def adaptation_figures(target_log: list[dict], after: int, blinded_at: int, window: int = 8) -> dict:

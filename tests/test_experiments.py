@@ -57,3 +57,39 @@ def test_same_lifetime_compares_field_by_field(tmp_path, capsys):
     (tmp_path / "b.json").write_text(json.dumps(b))
     assert same.main([str(tmp_path / "a.json"), str(tmp_path / "b.json")]) == 1
     assert "phases[0].reason: 'loop' vs 'crash'" in capsys.readouterr().out
+
+
+def test_online_round6_runs_each_variant_and_tabulates(tmp_path, capsys):
+    """Each round-6 variant runs a smoke lifetime; the default variant is the plain lifetime."""
+    round6 = _script("online_round6")
+    out = tmp_path / "r6.jsonl"
+    for variant in round6.VARIANTS:
+        assert round6.main([variant, "1", "--budget", "120", "--out", str(out)]) == 0
+    runs = [json.loads(line) for line in out.read_text().splitlines()]
+    assert [r["variant"] for r in runs] == list(round6.VARIANTS)
+    assert all(r["interactions"] in (120, 121) and 0 < r["lost"] <= r["interactions"] for r in runs)
+    from cosim.online import OnlineConfig, make_run
+
+    plain = make_run(OnlineConfig(seed=1, max_interactions=120)).run()
+    assert runs[0]["interactions"] == plain.interactions and runs[0]["phases"] == len(plain.phases)
+    assert round6.main([round6.VARIANTS[0], "1", "--budget", "120", "--out", str(out)]) == 0  # reused
+    assert len(out.read_text().splitlines()) == len(round6.VARIANTS)
+    capsys.readouterr()
+    assert round6.main(["--table", str(out)]) == 0
+    assert "| cyclemem_leg | 1: **" in capsys.readouterr().out
+
+
+def test_online_where_accounts_for_every_interaction(capsys):
+    where = _script("online_where")
+    assert where.main(["--seed", "1", "--budget", "300"]) == 0
+    got = json.loads(capsys.readouterr().out)
+    go = got["where_interactions_go"]
+    assert got["interactions"] in (300, 301) and sum(go["per_block"]) == got["interactions"]
+    # every interaction is in a failed segment or in a leg's rest after its last failure, or after
+    # the last failure of the unfinished leg
+    assert go["in_failed_segments"] + got["clean"] <= got["interactions"]
+    assert got["loops"]["stops"] >= got["loops"]["again_in_lifetime"] >= got["loops"]["again_on_leg"]
+    assert got["states"]["met"] >= got["states"]["at_most_5"] >= got["states"]["at_most_2"] > 0
+    # 1 -7-> 64 -2-> 0 -0-> 1: the loop is its obstacle pair; the free-space pairs are the reflex's
+    assert where.last_cycle([(0, 0), (1, 7), (64, 2), (0, 0)], 1) == ((1, 7),)
+    assert where.last_cycle([(0, 0), (64, 2)], 64) == ()

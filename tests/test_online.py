@@ -162,7 +162,7 @@ def test_unknown_backend_is_refused():
         make_boards("vhdl")
 
 
-def main(argv):
+def ehw_sim(argv):
     """``ehw sim ...`` (the on-line command line)."""
     from cosim.cli import main as ehw
 
@@ -170,7 +170,7 @@ def main(argv):
 
 
 def test_command_line_writes_summary_and_plots(tmp_path, capsys):
-    rc = main(["--seed", "2", "--arena", "empty", "--targets", "3", "--population", "20",
+    rc = ehw_sim(["--seed", "2", "--arena", "empty", "--targets", "3", "--population", "20",
                "--generations-per-phase", "2", "--out", str(tmp_path), "--no-progress"])
     assert rc == 0
     summary = json.loads((tmp_path / "summary.json").read_text())
@@ -184,7 +184,7 @@ def test_command_line_writes_summary_and_plots(tmp_path, capsys):
 
 
 def test_continue_past_64_reports_the_64th_target_and_fig11(tmp_path, capsys):
-    rc = main(["--seed", "2", "--arena", "empty", "--population", "20", "--generations-per-phase", "2",
+    rc = ehw_sim(["--seed", "2", "--arena", "empty", "--population", "20", "--generations-per-phase", "2",
                "--continue-past-64", "2", "--out", str(tmp_path), "--no-progress"])
     assert rc == 0
     summary = json.loads((tmp_path / "summary.json").read_text())
@@ -266,3 +266,20 @@ def test_dropped_options_are_gone():
     for option in ("--mark-loops", "--targeted", "--download", "--loop-penalty", "--escape-spread",
                    "--model-update", "--loop-key", "--loop-relax", "--escape-credit", "--blame-phase-only"):
         assert option not in help_text
+
+
+def test_interaction_breakdown_on_hand_made_records():
+    from cosim.online_report import interaction_breakdown
+
+    phases = [{"interactions": 10, "reason": "crash", "state": 1, "motion": 0},
+              {"interactions": 25, "reason": "loop", "state": 1, "motion": 3},
+              {"interactions": 40, "reason": "loop", "state": 1, "motion": 3}]
+    targets = [{"target": 1, "interactions": 20}, {"target": 2, "interactions": 30}]
+    got = interaction_breakdown(phases, targets, 50, block=1)
+    # failed segments: 0-10, 20-25 (after target 1), 30-40 (after target 2)
+    assert got == {"in_failed_segments": 25, "per_failure": 8.33, "first_leg": 20,
+                   "per_block": [20, 10, 20], "block": 1, "repeated_blames": 1}
+    run = make_run(OnlineConfig(seed=5, **SMALL)).run()
+    where = run.summary()["where_interactions_go"]
+    assert 0 < where["in_failed_segments"] <= run.interactions
+    assert sum(where["per_block"]) == run.interactions
