@@ -6,11 +6,11 @@ re-typed on the host side.
 
 Frame (both directions; docs/host_link.md)::
 
-    SYNC | command | status | length | payload[length] | crc[15:8] | crc[7:0]
+    SYNC | command | status | tag | length | payload[length] | crc[15:8] | crc[7:0]
 
-- ``SYNC`` = 0xA5 starts a frame; the three header bytes are :class:`FrameHeader` (little-endian,
-  ``command`` first). A request carries status 0; a reply echoes the request's command with a
-  :class:`Status`.
+- ``SYNC`` = 0xA5 starts a frame; the four header bytes are :class:`FrameHeader` (little-endian,
+  ``command`` first). A request carries status 0; a reply echoes the request's command and tag
+  with a :class:`Status`.
 - The CRC is :data:`LINK_CRC` (CRC-16/IBM-3740, "CCITT-FALSE": poly 0x1021, init 0xFFFF) over the
   header and payload, sent high byte first, so that the CRC register over the whole frame after
   ``SYNC`` ends at the algorithm's residue (0): the gateware checks ``match_detected`` of
@@ -90,10 +90,11 @@ class Status(enum.Enum, shape=8):
 
 
 class FrameHeader(data.Struct):
-    """The three bytes after ``SYNC``, in both directions."""
+    """The four bytes after ``SYNC``, in both directions."""
 
     command: 8
     status: 8
+    tag: 8      # chosen by the host per request, echoed in the reply: a late reply is recognised
     length: 8
 
 
@@ -436,6 +437,7 @@ class _Link:
         wiring.connect(m, self.snd.data, self.uart.tx_data)
 
         self.command = Signal(8)   # the command being answered
+        self.tag = Signal(8)
         self.status = Signal(8)
         self.length = Signal(8)    # reply payload bytes
         self.reply = Signal(8 * 32)  # reply payload (byte i = bits 8i..8i+7) unless a top overrides
@@ -457,6 +459,7 @@ class _Link:
             self.asm.byte.eq(rcv.byte),
             self.asm.valid.eq(rcv.byte_valid & genome_byte),
             self.snd.header.command.eq(self.command),
+            self.snd.header.tag.eq(self.tag),
             self.snd.header.status.eq(self.status),
             self.snd.header.length.eq(self.length),
             self.snd.byte.eq(self.reply.word_select(self.snd.index[:5], 8)),
@@ -526,11 +529,11 @@ class _LinkTop(wiring.Component):
         with m.FSM(init="Listen"):
             with m.State("Listen"):
                 with m.If(rcv.truncated):
-                    m.d.sync += [link.command.eq(rcv.header.command),
+                    m.d.sync += [link.command.eq(rcv.header.command), link.tag.eq(rcv.header.tag),
                                  link.frames_rejected.eq(link.frames_rejected + 1)]
                     link.answer(m, Status.TRUNCATED)
                 with m.Elif(rcv.done):
-                    m.d.sync += link.command.eq(rcv.header.command)
+                    m.d.sync += [link.command.eq(rcv.header.command), link.tag.eq(rcv.header.tag)]
                     with m.If(~rcv.ok):
                         m.d.sync += link.frames_rejected.eq(link.frames_rejected + 1)
                         link.answer(m, Status.BAD_CRC)
