@@ -12,7 +12,7 @@ where the stream is the simulated serial line of the board top in Verilator.
 - :class:`LinkEvaluatorBoard`: keeps the host's copy of the world model (the update rule of SPEC
   section 7 needs the current entry, as ``hdl.system_top.SystemHost``) and sends the resulting
   entry with OBSERVE; evaluates a population in chunks of the board's ``p_max`` slots:
-  LOAD_GENOME each, EVALUATE, READ_RESULTS. A chunk answered NOT_LOADED (a damaged frame touched
+  LOAD_GENOME each (pipelined, ``LinkClient.load_genomes``), EVALUATE, READ_RESULTS. A chunk answered NOT_LOADED (a damaged frame touched
   a single-buffered evaluator's rows) is loaded again, at most ``retries`` times.
 
 With ``check`` (default) each board keeps the reference model beside it and raises
@@ -107,8 +107,7 @@ class LinkEvaluatorBoard:
 
     def _chunk(self, rows) -> tuple[list, int]:
         for attempt in range(self.retries + 1):
-            for i, genome in enumerate(rows):
-                self.client.load_genome(i, genome)
+            self.client.load_genomes(rows)
             try:
                 cycles = self.client.evaluate(len(rows))
             except NotLoaded:

@@ -28,6 +28,7 @@ from hdl.link import (COUNTERS_REPLY, CRC_BYTES, EVALUATE_REPLY, EVALUATE_REQUES
                       FrameHeader, Status, genome_bytes)
 
 RETRIES = 3  # resends of one request after an error reply or a timeout
+PIPELINE = 2  # LOAD_GENOME frames in flight (the board answers one while the next arrives)
 RETRY_STATUSES = (Status.BAD_CRC, Status.TRUNCATED)
 
 
@@ -240,6 +241,36 @@ class LinkClient:
     def load_genome(self, index: int, rows) -> None:
         self.request(Command.LOAD_GENOME, pack(LOAD_GENOME_REQUEST, index=int(index)) + genome_payload(rows),
                      reply_length=0)
+
+    def load_genomes(self, population, window: int = PIPELINE) -> None:
+        """LOAD_GENOME of genome i into slot i for every genome, pipelined: the next frame goes out
+        before the last reply is read (at most ``window`` unanswered), so the line never idles
+        waiting for a reply. A reply that is not a clean OK for its tag makes that genome go
+        again through :meth:`request` (stop-and-wait, with its retries)."""
+        pending = []
+        for index, rows in enumerate(population):
+            payload = pack(LOAD_GENOME_REQUEST, index=index) + genome_payload(rows)
+            self._tag = (self._tag + 1) % 256
+            frame = encode_frame(Command.LOAD_GENOME, payload, tag=self._tag)
+            self.stream.write(frame)
+            self.stats.bytes_sent += len(frame)
+            self.stats.requests += 1
+            pending.append((self._tag, payload))
+            if len(pending) >= window:
+                self._settle(*pending.pop(0))
+        for tag, payload in pending:
+            self._settle(tag, payload)
+
+    def _settle(self, tag: int, payload: bytes) -> None:
+        reply = self._read_reply()
+        if (not isinstance(reply, str) and reply[0].tag == tag and reply[0].status == Status.OK.value
+                and reply[0].command == Command.LOAD_GENOME.value and not reply[1]):
+            return
+        reason = reply if isinstance(reply, str) else f"pipelined reply {Status(reply[0].status).name}"
+        self.stats.note(reason)
+        self.stats.resends += 1
+        self.stats.requests -= 1  # counted again by request()
+        self.request(Command.LOAD_GENOME, payload, reply_length=0)
 
     def evaluate(self, count: int) -> int:
         """Evaluate population slots 0..count-1; the board's cycles for it."""
