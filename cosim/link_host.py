@@ -286,6 +286,6 @@ class LinkClient:
             reply = self.request(Command.READ_RESULTS, pack(READ_RESULTS_REQUEST, first=start, count=n),
                                  reply_length=n * RESULT_BYTES)
             for i in range(n):
-                r = unpack(RESULT_REPLY, reply[i * RESULT_BYTES:(i + 1) * RESULT_BYTES])
+                r = unpack(RESULT_REPLY, reply[i * RESULT_BYTES:(i + 1) * RESULT_BYTES]).result
                 out.append((int(r.crashes), int(r.loops), int(r.distance)))
         return out

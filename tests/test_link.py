@@ -151,7 +151,9 @@ def test_uart_backend_short_run_equals_reference_and_faults(tmp_path, monkeypatc
     from cosim.uart_backend import TOPLEVEL, prepare_uart_run
     from hdl.uart import max_baud
 
-    config = OnlineConfig(seed=3, arena="one_obstacle", n_targets=3, population=16,
+    # 16 generations, 231 interactions, crash, loop and time-out phases; population 10 on 8 slots:
+    # every evaluation is two chunks
+    config = OnlineConfig(seed=4, arena="one_obstacle", n_targets=3, population=10,
                           generations_per_phase=2, max_leg_steps=60)
     source, env = prepare_uart_run(config, tmp_path, baud=max_baud(25e6), p_max=8,
                                    build_name=f"{TOPLEVEL}_test")
