@@ -86,7 +86,7 @@ if cocotb is not None:
         from cosim.uart_backend import host_timeout_s, start_top
 
         baud = float(os.environ.get("EHW_BAUD") or BAUD)
-        line = await start_top(dut, baud, host_timeout_s(baud, P_MAX))
+        line = await start_top(dut, baud, host_timeout_s(baud, P_MAX), "hdl")
 
         async def sim_time():
             return get_sim_time("ns") * 1e-9
