@@ -210,7 +210,11 @@ def link_summary(controller, evaluator) -> dict:
     out = {}
     for role, board in (("controller", controller), ("evaluator", evaluator)):
         stats = board.client.stats
-        out[role] = {"port": board.client.port, "bytes_sent": stats.bytes_sent,
+        identity = board.client.identity
+        out[role] = {"port": board.client.port,
+                     "board": None if identity is None else {"design": identity.design, "build_id": f"{identity.build_id:08x}",
+                                                             "clk_freq_hz": identity.clk_freq_hz, "baud": identity.baud},
+                     "bytes_sent": stats.bytes_sent,
                      "bytes_received": stats.bytes_received, "requests": stats.requests,
                      "resends": stats.resends, "resend_reasons": dict(stats.reasons)}
         if controller.client is evaluator.client:

@@ -116,6 +116,7 @@ class LinkClient:
         self.retries = retries
         self.port = str(getattr(stream, "port", None) or getattr(stream, "name", "the link"))
         self.stats = LinkStats()
+        self.identity: Identity | None = None  # set by expect()
         self._tag = 0
 
     # -- framing ------------------------------------------------------------------------------
@@ -208,6 +209,7 @@ class LinkClient:
         if identity.design not in names:
             raise LinkError(f"{self.port}: the board is {identity.design!r}, expected "
                             f"{' or '.join(repr(n) for n in names)}")
+        self.identity = identity
         if identity.layout_version != GENOME_LAYOUT_VERSION:
             raise LinkError(f"{self.port}: the board's genome layout is version {identity.layout_version}, "
                             f"this host's is {GENOME_LAYOUT_VERSION}: rebuild the bitstream")
