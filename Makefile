@@ -9,12 +9,18 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 BACKEND ?= reference
-# The simulator of BACKEND=cocotb: verilator (a full 64-target run in minutes) or icarus (~50x slower).
-SIM    ?= verilator
-# HDL backends: controllers per population the HDL evaluator evaluates (each checked against the
-# reference; the rest come from the reference). 0 = all of them. Default: all on cocotb+Verilator;
-# 1 (a spot check) on Icarus and Amaranth's simulator, where all of them take hours.
-HDL_SAMPLE ?= $(if $(and $(filter cocotb,$(BACKEND)),$(filter verilator,$(SIM))),0,1)
+# Every target runs the console script `ehw` (cosim/cli.py); the variables become its options, and
+# the defaults of the unset ones are ehw's own (`ehw sim --help`), so `make sim BACKEND=cocotb` and
+# `ehw sim --backend cocotb` run the same simulator.
+EHW    := $(VENV)/bin/ehw
+# The simulator of BACKEND=cocotb: verilator (ehw's default: a full 64-target run in minutes) or
+# icarus (~50x slower).
+SIM    ?=
+# HDL backends: controllers per population the HDL evaluates (each checked against the reference;
+# the rest come from the reference). 0 = all of them. ehw's default: all on cocotb+Verilator, 1 (a
+# spot check) on Icarus and Amaranth's simulator, where all of them take hours.
+HDL_SAMPLE ?=
+WAVES  ?=
 SEED   ?= 1
 SEEDS  ?= 5
 JOBS   ?= 2
@@ -26,15 +32,18 @@ PORT   ?=
 PORT2  ?=
 BAUD   ?=
 
-.PHONY: all test sim offline compare verilog bench arena baseline hdl-tools venv clean distclean help
+.PHONY: all test test-fast sim offline compare rl verilog bench arena baseline hdl-tools venv clean distclean help
 
 all: test
 
 help:
-	@echo "make sim       on-line model-based experiment (BACKEND=reference|amaranth|cocotb|serial|uart, SIM=verilator|icarus, SEED=1, HDL_SAMPLE; serial: PORT=, PORT2=, BAUD=)"
+	@echo "Each target runs 'ehw COMMAND' (ehw --help; ehw COMMAND --help); ARGS=... adds options."
+	@echo "make sim       ehw sim: on-line model-based experiment (BACKEND=reference|amaranth|cocotb|serial|uart, SIM=verilator|icarus, SEED=1, HDL_SAMPLE, WAVES=1; serial: PORT=, PORT2=, BAUD=)"
 	@echo "make test      the whole test suite (creates .venv, installs iverilog if missing)"
-	@echo "make offline   off-line model-free experiment"
-	@echo "make compare   both methods over SEEDS seeds -> results/compare.md"
+	@echo "make test-fast the suite without the cocotb/Verilator simulator builds (the inner loop)"
+	@echo "make offline   ehw offline: off-line model-free experiment"
+	@echo "make compare   ehw compare: every method over SEEDS seeds -> results/compare.{md,json,png} (JOBS, ARGS=\"--methods ... --cluster local\")"
+	@echo "make rl        install the optional deep-RL extra (stable-baselines3, CPU torch) for --methods dqn,ppo"
 	@echo "make verilog   build/verilog/*.v"
 	@echo "make bench     speed figures -> results/bench.json"
 	@echo "make arena     render the default arena -> results/arena.png"
@@ -72,27 +81,35 @@ hdl-tools:
 test: $(STAMP) hdl-tools
 	$(PY) -m pytest -n $(JOBS) $(ARGS)
 
+# The inner loop: every test but those that build Verilog in a simulator (markers in pyproject.toml).
+test-fast: $(STAMP)
+	$(PY) -m pytest -n $(JOBS) -m "not cocotb and not verilator" $(ARGS)
+
 sim: $(STAMP) hdl-tools
-	EHW_SIM=$(SIM) EHW_HDL_SAMPLE=$(HDL_SAMPLE) EHW_PORT=$(PORT) EHW_PORT2=$(PORT2) EHW_BAUD=$(BAUD) \
-	  $(PY) -m cosim.online --backend $(BACKEND) --seed $(SEED) $(ARGS)
+	EHW_PORT=$(PORT) EHW_PORT2=$(PORT2) EHW_BAUD=$(BAUD) $(EHW) sim --backend $(BACKEND) --seed $(SEED) $(if $(SIM),--simulator $(SIM)) \
+	  $(if $(HDL_SAMPLE),--hdl-sample $(HDL_SAMPLE)) $(if $(filter-out 0,$(WAVES)),--waves) $(ARGS)
 
 offline: $(STAMP)
-	$(PY) -m cosim.offline --seed $(SEED) $(ARGS)
+	$(EHW) offline --seed $(SEED) $(ARGS)
 
 compare: $(STAMP)
-	$(PY) -m cosim.compare --seeds $(SEEDS) $(ARGS)
+	$(EHW) compare --seeds $(SEEDS) --jobs $(JOBS) $(ARGS)
+
+# The optional extra of `make compare --methods dqn,ppo`: stable-baselines3 and torch 2.13.0 (CPU).
+rl: $(STAMP)
+	$(PY) -m pip install --quiet -e '.[rl,test]'
 
 verilog: $(STAMP)
-	$(PY) -m hdl.generate --out build/verilog
+	$(EHW) verilog --out build/verilog $(ARGS)
 
 bench: $(STAMP) hdl-tools
-	$(PY) -m benchmarks $(ARGS)
+	$(EHW) bench $(ARGS)
 
 arena: $(STAMP)
-	$(PY) -m sim_world.render --out results $(ARGS)
+	$(EHW) arena --out results $(ARGS)
 
 baseline: $(STAMP)
-	$(PY) -m sim_world.baseline $(ARGS)
+	$(EHW) baseline $(ARGS)
 
 clean:
 	rm -rf build results sim_build .pytest_cache .hypothesis

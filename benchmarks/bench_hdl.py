@@ -94,7 +94,7 @@ if cocotb is not None:
 
 
 def cocotb_figures(simulator: str = "icarus") -> dict:
-    from cosim.cocotb_backend import write_system_verilog
+    from cosim.cocotb_launch import write_system_verilog
     from cosim.cocotb_run import REPO_ROOT, run_cocotb
 
     with tempfile.TemporaryDirectory() as tmp:

@@ -30,6 +30,7 @@ import numpy as np
 
 from cosim.boards import EvalCounts, ReferenceControllerBoard, ReferenceEvaluatorBoard, register_backend
 from cosim.hardware_time import CLOCK_HZ
+from ga.motions import DEFAULT_DISTANCE_RULE
 from hdl.ports import AmaranthPins
 
 IDLE_S = 1e-12  # the serving testbench's wait between jobs: far below a clock period
@@ -44,7 +45,7 @@ class AmaranthSystem:
     """One SystemTop in one Simulator, kept alive across calls; ``call(job)`` runs a coroutine
     function ``job(host)`` in the simulation and returns its result."""
 
-    def __init__(self, reflex: bool = True, vcd: str | None = None, distance_rule: str = "covered"):
+    def __init__(self, reflex: bool = True, vcd: str | None = None, distance_rule: str = DEFAULT_DISTANCE_RULE):
         from amaranth.sim import Simulator
 
         from hdl.system_top import SystemHost, SystemTop
@@ -238,7 +239,7 @@ class HDLEvaluatorBoard:
     """
 
     def __init__(self, system, reflex: bool = True, check: bool = True, log: BoardLog | None = None,
-                 sample: int | None = None, distance_rule: str = "covered"):
+                 sample: int | None = None, distance_rule: str = DEFAULT_DISTANCE_RULE):
         self.system = system
         self.host = system.host
         self.sample = sample_default() if sample is None else int(sample)
@@ -303,7 +304,7 @@ class HDLEvaluatorBoard:
 
 
 def make_amaranth_boards(reflex: bool = True, check: bool = True, vcd: str | None = None,
-                         sample: int | None = None, distance_rule: str = "covered"):
+                         sample: int | None = None, distance_rule: str = DEFAULT_DISTANCE_RULE):
     """A fresh (controller board, evaluator board) pair sharing one simulated SystemTop
     (``sample``: see :class:`HDLEvaluatorBoard`; default ``EHW_HDL_SAMPLE`` or 0, all).
     ``vcd``: dump the simulation there (``WAVES=1``: build/sim/amaranth_system_top.vcd)."""

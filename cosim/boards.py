@@ -21,7 +21,21 @@ from typing import Protocol
 
 import numpy as np
 
-BACKENDS = ("reference", "amaranth", "cocotb", "serial", "uart")
+from cosim.errors import UserError
+from ga.motions import DEFAULT_DISTANCE_RULE
+
+# The one place a backend is named: name -> (the module that registers its boards with
+# ``register_backend``, or None for the reference below; a launcher "module:function" for a backend
+# whose boards exist only inside a simulator that must be started first, or None). Adding a backend
+# is one line here plus its module.
+_BACKENDS = {
+    "reference": (None, None),
+    "amaranth": ("cosim.amaranth_backend", None),
+    "cocotb": ("cosim.cocotb_backend", "cosim.cocotb_launch:launch"),
+    "serial": ("cosim.link_boards", None),  # real boards behind the UART host link
+    "uart": ("cosim.uart_backend", "cosim.uart_backend:launch"),  # the link top in Verilator
+}
+BACKENDS = tuple(_BACKENDS)
 
 
 @dataclass(frozen=True)
@@ -106,7 +120,7 @@ class ReferenceControllerBoard:
 class ReferenceEvaluatorBoard:
     """The evaluator board as ``ga.world_model.WorldModel`` plus ``ga.evaluator.evaluate_population``."""
 
-    def __init__(self, reflex: bool = True, distance_rule: str = "covered"):
+    def __init__(self, reflex: bool = True, distance_rule: str = DEFAULT_DISTANCE_RULE):
         from ga.motions import motion_distances
         from ga.world_model import WorldModel
 
@@ -134,13 +148,14 @@ class ReferenceEvaluatorBoard:
         )
 
 
-class BackendUnavailable(RuntimeError):
+class BackendUnavailable(UserError, RuntimeError):
     """A board backend that is named in SPEC section 9 but not installed in this checkout yet."""
 
 
-# name -> factory(reflex: bool, distance_rule: str = "covered", **options) -> (ControllerBoard,
-# EvaluatorBoard); distance_rule: dist[a] of the evaluator (ga.motions.DISTANCE_RULES). The HDL backends
-# register themselves here (``register_backend``) so that the loops never import them directly.
+# name -> factory(reflex: bool, distance_rule: str = DEFAULT_DISTANCE_RULE, **options) ->
+# (ControllerBoard, EvaluatorBoard); distance_rule: dist[a] of the evaluator
+# (ga.motions.DISTANCE_RULES). The HDL backends register themselves here (``register_backend``)
+# so that the loops never import them directly.
 _FACTORIES: dict = {}
 
 
@@ -151,7 +166,7 @@ def register_backend(name: str, factory) -> None:
     _FACTORIES[name] = factory
 
 
-def _reference_factory(reflex: bool = True, distance_rule: str = "covered", **options):
+def _reference_factory(reflex: bool = True, distance_rule: str = DEFAULT_DISTANCE_RULE, **options):
     if options:
         raise TypeError(f"the reference backend takes only distance_rule, got {sorted(options)!r}")
     return ReferenceControllerBoard(reflex=reflex), ReferenceEvaluatorBoard(reflex=reflex, distance_rule=distance_rule)
@@ -167,13 +182,12 @@ def make_boards(backend: str = "reference", *, reflex: bool = True, **options):
     """
     if backend not in BACKENDS:
         raise ValueError(f"unknown backend {backend!r}; choose one of {BACKENDS!r}")
-    if backend not in _FACTORIES:
+    module = _BACKENDS[backend][0]
+    if backend not in _FACTORIES and module is not None:
         # The HDL backends register from their own modules; importing them here keeps the
         # reference path free of Amaranth/cocotb imports.
         import importlib
 
-        module = {"amaranth": "cosim.amaranth_backend", "cocotb": "cosim.cocotb_backend",
-                  "serial": "cosim.link_boards", "uart": "cosim.uart_backend"}[backend]
         try:
             importlib.import_module(module)
         except ModuleNotFoundError as error:
@@ -185,3 +199,17 @@ def make_boards(backend: str = "reference", *, reflex: bool = True, **options):
             f"use --backend reference"
         )
     return _FACTORIES[backend](reflex=reflex, **options)
+
+
+def launcher(backend: str):
+    """The function ``launch(config, args) -> exit status`` that starts ``backend``'s simulator
+    and runs the lifetime inside it, or None when the loop can call the boards directly."""
+    if backend not in BACKENDS:
+        raise ValueError(f"unknown backend {backend!r}; choose one of {BACKENDS!r}")
+    target = _BACKENDS[backend][1]
+    if target is None:
+        return None
+    import importlib
+
+    module, name = target.split(":")
+    return getattr(importlib.import_module(module), name)

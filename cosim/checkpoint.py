@@ -1,51 +1,53 @@
-"""Atomic JSON checkpoints for long experiment runs (off-line and on-line runners).
+"""Atomic, checksummed JSON checkpoints for long experiment runs (off-line and on-line runners).
 
 A checkpoint file is one JSON object::
 
-    {"format": 1, "kind": "<runner name>", "config": {...}, "state": {...}}
+    {"format": 2, "kind": "<runner name>", "config": {...}, "state": {...}, "sha256": "<hex>"}
 
 ``config`` holds the parameters that define the run (seed, population, arena, ...): a run may only
 be resumed under the same config, otherwise the resumed run would not be the run that was
-interrupted. ``state`` is whatever the runner needs to continue (GA state, counters, history).
+interrupted (:func:`read_checkpoint` gives the stored config, for a resume that uses it).
+``state`` is whatever the runner needs to continue (GA state, counters, history). ``sha256`` is
+the SHA-256 of the canonical JSON of the other four fields: a hand-edited or bit-flipped file is
+refused, never resumed with the edited values.
 
-Writes are atomic: the JSON goes to a temporary file in the same directory, is flushed and
-fsync'ed, then `os.replace` swaps it in, so a run killed mid-write leaves the previous checkpoint
-intact.
+Writes are atomic (``cosim.runs.atomic_write_text``): the JSON goes to a temporary file in the same
+directory, is flushed and fsync'ed, then `os.replace` swaps it in, so a run killed mid-write
+leaves the previous checkpoint intact.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
-import os
-import tempfile
 from pathlib import Path
 
-CHECKPOINT_FORMAT = 1
+from cosim.errors import UserError
+from cosim.runs import atomic_write_text
+
+CHECKPOINT_FORMAT = 2  # 2: with the sha256 field
 
 
-class CheckpointError(RuntimeError):
-    """A checkpoint that cannot be used: missing, corrupt, of another kind, format or config."""
+class CheckpointError(UserError, RuntimeError):
+    """A checkpoint that cannot be used: missing, corrupt, edited, of another kind, format or config."""
+
+
+def _canonical(payload: dict) -> str:
+    return json.dumps(payload, sort_keys=True, allow_nan=False, separators=(",", ":"))
+
+
+def _digest(payload: dict) -> str:
+    body = {k: payload[k] for k in ("format", "kind", "config", "state")}
+    return hashlib.sha256(_canonical(body).encode()).hexdigest()
 
 
 def save_checkpoint(path, kind: str, config: dict, state: dict) -> None:
     """Write ``state`` atomically to ``path`` (parent directories are created)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    payload = {"format": CHECKPOINT_FORMAT, "kind": kind, "config": config, "state": state}
-    text = json.dumps(payload, sort_keys=True, allow_nan=False)
-    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
+    # Through JSON first, so the checksum is over what a reader gets back (tuples -> lists).
+    payload = json.loads(_canonical({"format": CHECKPOINT_FORMAT, "kind": kind, "config": config,
+                                     "state": state}))
+    payload["sha256"] = _digest(payload)
+    atomic_write_text(Path(path), json.dumps(payload, sort_keys=True, allow_nan=False))
 
 
 def _normalise(config: dict) -> dict:
@@ -53,34 +55,54 @@ def _normalise(config: dict) -> dict:
     return json.loads(json.dumps(config, sort_keys=True))
 
 
-def load_checkpoint(path, kind: str, config: dict) -> dict:
-    """The ``state`` saved at ``path``, after checking kind, format and config.
+def read_checkpoint(path, kind: str) -> tuple[dict, dict]:
+    """``(config, state)`` stored at ``path``, after checking format, kind and checksum.
 
     Raises CheckpointError naming the problem: a missing or unreadable file, invalid JSON, a
-    missing field, another kind, another format version, or a config that differs (the
-    differing keys with both values).
+    missing field, another format version, another kind, or a checksum that does not match
+    (the file was edited or damaged).
     """
     path = Path(path)
+    name = repr(str(path))
     try:
-        text = path.read_text()
+        text = path.read_bytes().decode()
     except OSError as exc:
-        raise CheckpointError(f"cannot read checkpoint {str(path)!r}: {exc}") from exc
+        raise CheckpointError(f"cannot read checkpoint {name}: {exc.strerror or exc}") from None
+    except UnicodeDecodeError:
+        raise CheckpointError(f"checkpoint {name} is corrupt (not UTF-8 text)") from None
     try:
         payload = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise CheckpointError(f"checkpoint {str(path)!r} is corrupt (not valid JSON: {exc})") from exc
+    except (ValueError, RecursionError) as exc:
+        raise CheckpointError(f"checkpoint {name} is corrupt (not valid JSON: {exc})") from None
     if not isinstance(payload, dict) or not {"format", "kind", "config", "state"} <= payload.keys():
         raise CheckpointError(
-            f"checkpoint {str(path)!r} is corrupt (expected an object with format, kind, config, state)"
-        )
+            f"checkpoint {name} is corrupt (expected an object with format, kind, config, state)")
     if payload["format"] != CHECKPOINT_FORMAT:
         raise CheckpointError(
-            f"checkpoint {str(path)!r} has format version {payload['format']!r}, "
-            f"this code reads version {CHECKPOINT_FORMAT}"
-        )
+            f"checkpoint {name} has format version {payload['format']!r}, this code reads version "
+            f"{CHECKPOINT_FORMAT}")
     if payload["kind"] != kind:
-        raise CheckpointError(f"checkpoint {str(path)!r} is a {payload['kind']!r} checkpoint, not {kind!r}")
-    saved, wanted = payload["config"], _normalise(config)
+        raise CheckpointError(f"checkpoint {name} is a {payload['kind']!r} checkpoint, not {kind!r}")
+    try:
+        digest = _digest(payload)
+    except (ValueError, TypeError):  # NaN/Infinity literals: never written by save_checkpoint
+        digest = None
+    if payload.get("sha256") != digest:
+        raise CheckpointError(
+            f"checkpoint {name} fails its checksum (sha256): it was edited or damaged; a run "
+            "resumes only from the file it wrote")
+    if not isinstance(payload["config"], dict):
+        raise CheckpointError(f"checkpoint {name} is corrupt (config is not an object)")
+    if not isinstance(payload["state"], dict):
+        raise CheckpointError(f"checkpoint {name} is corrupt (state is not an object)")
+    return payload["config"], payload["state"]
+
+
+def load_checkpoint(path, kind: str, config: dict) -> dict:
+    """The ``state`` saved at ``path``, after :func:`read_checkpoint`'s checks and a check that
+    the stored config is ``config`` (else the differing keys with both values)."""
+    saved, state = read_checkpoint(path, kind)
+    wanted = _normalise(config)
     if saved != wanted:
         keys = sorted(set(saved) | set(wanted))
         diffs = [
@@ -91,6 +113,4 @@ def load_checkpoint(path, kind: str, config: dict) -> dict:
         raise CheckpointError(
             f"checkpoint {str(path)!r} was made with another config; differing keys: " + "; ".join(diffs)
         )
-    if not isinstance(payload["state"], dict):
-        raise CheckpointError(f"checkpoint {str(path)!r} is corrupt (state is not an object)")
-    return payload["state"]
+    return state

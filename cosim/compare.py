@@ -1,14 +1,35 @@
-"""Both methods on the same arena over N seeds: the paper's comparison table (section 5).
+"""Every method on the same robot, arena and course over N seeds: the comparison table.
 
-    python -m cosim.compare --seeds 5 [--jobs 2] [--arena default] [--out results]
+    python -m cosim.compare --seeds 5 [--first-seed 1] [--methods online,baseline,q-learning,...]
+                            [--shaping shaped,unshaped] [--jobs 2] [--cluster local|ADDRESS]
+                            [--arena default] [--out results] [--fresh]
                             [--blind-bit B --blind-after-target T]
 
-For seeds 1..N it runs the on-line model-based method (``cosim.online``, its default config), the
-off-line model-free method (``cosim.offline.run_offline``) and the hand-written reactive baseline
-(``sim_world.baseline``, in the noisy world), in a process pool (``--jobs``). It writes
-``<out>/compare.md`` and ``<out>/compare.json``: interactions, generations, genetic operations,
-world states and transitions for each method (median and range over the seeds), beside the
-paper's figures, and the interaction ratio off-line / on-line.
+Methods (``--methods``, default: all but the optional deep-RL ones):
+
+* ``online``: the on-line model-based method (``cosim.online``; ``--online KEY=VALUE`` options).
+* ``offline``: the off-line model-free method (``cosim.offline.run_offline``).
+* ``baseline``: the hand-written reactive controller (``sim_world.baseline``) in the noisy world.
+* ``q-learning``, ``dyna-q``, ``prioritized-sweeping``: tabular learners (``peers.tabular``) in
+  one lifetime under the on-line protocol (``peers.lifetime``), once per ``--shaping``
+  (``unshaped``: target, crash and step rewards only; ``shaped``: plus the progress towards the
+  ball, a distance the 8-bit state does not contain). Hyper-parameters: ``peers.tabular.TUNED``,
+  chosen by experiments/tune_tabular.py on its tuning seeds.
+* ``dqn``, ``ppo`` (optional, ``pip install .[rl]``): stable-baselines3 on the Gymnasium env
+  (``peers.deep``), under the same protocol, every environment step counted.
+
+The lifetimes run through one executor (``cosim.sweep``): a local process pool of ``--jobs``
+workers, or a Dask cluster (``--cluster local`` starts one on the loopback interface,
+``--cluster ADDRESS`` joins a scheduler). Finished lifetimes are cached under
+``<out>/compare/cache`` by (method, config, seed): an interrupted comparison resumes (``--fresh``
+runs everything again). Every lifetime takes its randomness from its seed only, so the table is
+the same whichever executor ran it.
+
+Outputs: ``<out>/compare.json`` (per method: interactions to 64 targets -- median, range, per
+seed --, crashes, targets reached where capped, CPU seconds per lifetime, ...), ``<out>/compare.md``
+(the table, with the paper's figures beside it and which seeds were used for tuning), and
+``<out>/compare.png``: targets reached against interactions for every method, the median over
+the seeds and its range.
 
 With ``--blind-bit`` (adaptation, paper section 5.2): the on-line run blinds that IR bit after
 target T and we count the interactions of the next 8 targets; the fixed off-line controller of the
@@ -20,84 +41,162 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
 
-PAPER = {
-    "online": {"interactions": 12_280, "generations": 485, "genetic_operations": 242_500,
-               "world_states": 84, "transitions": 334},
-    "offline": {"interactions": 3_283_269, "generations": 285, "genetic_operations": 5_700,
-                "world_states": 122, "transitions": 744},
-}
-ROWS = ("interactions", "generations", "genetic_operations", "world_states", "transitions", "targets_reached")
+from cosim.paper import PAPER_OFFLINE, PAPER_ONLINE
+
+PAPER = {"online": PAPER_ONLINE, "offline": PAPER_OFFLINE}
+TABULAR = ("q-learning", "dyna-q", "prioritized-sweeping")
+DEEP = ("dqn", "ppo")
+METHODS = ("online", "offline", "baseline") + TABULAR + DEEP
+OPTIONAL = DEEP  # need the [rl] extra; not in the default --methods
+DEFAULT_METHODS = tuple(m for m in METHODS if m not in OPTIONAL)
+SHAPINGS = ("shaped", "unshaped")
+ROWS = ("interactions", "crashes", "targets_reached", "world_states", "transitions", "generations",
+        "genetic_operations", "cpu_s")
 ADAPT_WINDOW = 8
+N_TARGETS = 64
+NAMES = {"online": "on-line model-based", "offline": "off-line model-free", "baseline": "reactive baseline",
+         "q-learning": "Q-learning", "dyna-q": "Dyna-Q", "prioritized-sweeping": "prioritized sweeping",
+         "dqn": "DQN (SB3)", "ppo": "PPO (SB3)"}
+
+
+def display_name(row: str) -> str:
+    """``q-learning/shaped`` -> ``Q-learning, shaped``."""
+    method, _, shaping = row.partition("/")
+    return NAMES.get(method, method) + (f", {shaping}" if shaping else "")
+
+
+# -- one lifetime per method (the only call sites of the runners) -----------------------------
 
 
 def _online(task: dict) -> dict:
-    from cosim.online import OnlineConfig, make_run, write_results
+    from cosim.online import OnlineConfig, make_run
+    from cosim.online_report import write_results
 
-    config = OnlineConfig(seed=task["seed"], arena=task["arena"], **task.get("online", {}))
+    config = OnlineConfig(seed=task["seed"], arena=task["config"]["arena"], **task["config"]["online"])
     out = Path(task["out"]) / "model_based" / f"seed_{task['seed']}"
     run = make_run(config, out=out, resume=(out / "checkpoint.json").exists() and task.get("resume", False))
     run.run()
     summary = write_results(run, out, plots=False)
-    return {k: v for k, v in summary.items() if k not in ("phases", "targets")}
+    result = {k: v for k, v in summary.items() if k not in ("phases", "targets")}
+    result["target_interactions"] = [t["interactions"] for t in summary.get("targets", [])]
+    return result
 
 
 def _offline(task: dict) -> dict:
     from cosim.offline import run_offline
 
+    cfg = task["config"]
     out = Path(task["out"]) / "model_free" / f"seed_{task['seed']}"
-    kwargs = dict(out=out, arena=task["arena"], progress=False, plots=False,
-                  resume=task.get("resume", False))
-    if task.get("generations_cap"):
-        kwargs["generations_cap"] = task["generations_cap"]
+    kwargs = dict(out=out, arena=cfg["arena"], progress=False, plots=False, resume=task.get("resume", False))
+    if cfg.get("generations_cap"):
+        kwargs["generations_cap"] = cfg["generations_cap"]
     summary = run_offline(task["seed"], **kwargs)
-    return {k: v for k, v in summary.items() if k not in ("history",)}
+    result = {k: v for k, v in summary.items() if k not in ("history",)}
+    result["target_interactions"] = offline_curve(json.loads((out / "history.json").read_text()))
+    result["crashes"] = None  # crashes happen inside the GA's evaluations (each ends the run)
+    return result
+
+
+def offline_curve(history: list[dict]) -> list[int]:
+    """The off-line run's curve: for k = 1, 2, ... the interactions spent (by every controller
+    evaluated so far) when the best controller first reached k targets."""
+    curve, best = [], 0
+    for entry in history:
+        while best < entry["best_targets"]:
+            best += 1
+            curve.append(entry["interactions"])
+    return curve
 
 
 def _baseline(task: dict) -> dict:
+    from peers.lifetime import seeds
     from sim_world.baseline import baseline_table
     from sim_world.course import DEFAULT_MAX_LEG_STEPS, run_course
     from sim_world.world import DEFAULT_NOISE, World
 
-    world = World(task["arena"], noise=DEFAULT_NOISE, seed=task["seed"])
-    res = run_course(world, baseline_table(), DEFAULT_MAX_LEG_STEPS, n_targets=64)
+    world_seed, _ = seeds(task["seed"])  # the noise stream of the other methods' seed
+    world = World(task["config"]["arena"], noise=DEFAULT_NOISE, seed=world_seed)
+    res = run_course(world, baseline_table(), DEFAULT_MAX_LEG_STEPS, n_targets=N_TARGETS)
     return {"interactions": res.steps, "targets_reached": res.targets_reached, "crashed": res.crashed,
-            "timed_out": res.timed_out, "world_states": len(res.states),
+            "crashes": res.crashes, "timed_out": res.timed_out, "world_states": len(res.states),
             "transitions": len({(t[0], t[1]) for t in res.transitions}),
-            "generations": 0, "genetic_operations": 0}
+            "generations": 0, "genetic_operations": 0,
+            "target_interactions": np.cumsum(res.leg_steps).tolist()}
 
 
-def fixed_controller_adaptation(genome_hex: str, arena: str, seed: int, bit: int, after: int,
-                                window: int = ADAPT_WINDOW, max_leg_steps: int | None = None) -> dict:
-    """The fixed off-line controller, IR bit ``bit`` blinded, from the pose that follows target
-    ``after``: interactions for the next ``window`` targets (None if a leg times out)."""
-    from cosim.online import OnlineConfig
-    from ga.genome import rows_from_hex
-    from ga.truth_table import truth_tables
-    from sim_world.course import run_course
-    from sim_world.world import DEFAULT_NOISE, Fault, World
+def _tabular(task: dict) -> dict:
+    from peers.lifetime import run_lifetime
+    from peers.tabular import LearnerConfig
 
-    max_leg_steps = max_leg_steps or OnlineConfig().max_leg_steps
-    world = World(arena, noise=DEFAULT_NOISE, faults=(Fault(at_step=0, bit=bit),), seed=seed)
-    table = truth_tables(rows_from_hex(genome_hex), reflex=True)
-    res = run_course(world, table, max_leg_steps, n_targets=window, start=(after - 1) % 64,
-                     stop_on_crash=False)
-    return {"targets": res.targets_reached, "interactions": res.steps, "crashes": res.crashes,
-            "timed_out": res.timed_out,
-            "interactions_for_next_targets": res.steps if res.targets_reached == window else None}
+    cfg = task["config"]
+    return run_lifetime(task["method"].split("/")[0], task["seed"], shaping=cfg["shaping"],
+                        config=LearnerConfig(**cfg["learner"]), arena=cfg["arena"],
+                        max_interactions=cfg["max_interactions"])
 
 
-def _run(task: dict) -> tuple[str, int, dict]:
-    fn = {"online": _online, "offline": _offline, "baseline": _baseline}[task["method"]]
-    t0 = time.perf_counter()
-    result = fn(task)
+def _deep(task: dict) -> dict:
+    from peers.deep import run_deep_lifetime
+
+    cfg = task["config"]
+    return run_deep_lifetime(task["method"].split("/")[0], task["seed"], shaping=cfg["shaping"],
+                             hyper=cfg["hyper"], arena=cfg["arena"], max_interactions=cfg["max_interactions"])
+
+
+RUNNERS = {"online": _online, "offline": _offline, "baseline": _baseline, "tabular": _tabular, "deep": _deep}
+
+
+def run_task(task: dict) -> dict:
+    """One lifetime (a sweep task); adds its CPU and wall seconds."""
+    c0, t0 = time.process_time(), time.perf_counter()
+    result = RUNNERS[task["kind"]](task)
+    result["cpu_s"] = round(time.process_time() - c0, 2)
     result["task_wall_s"] = round(time.perf_counter() - t0, 2)
-    return task["method"], task["seed"], result
+    return result
+
+
+def make_tasks(methods, seeds, *, arena: str, out: str, shapings=SHAPINGS, online: dict | None = None,
+               generations_cap: int | None = None, max_interactions: int | None = None,
+               resume: bool = False) -> list[dict]:
+    """The sweep's tasks: one per (row, seed); ``config`` holds what determines the result."""
+    from peers.lifetime import MAX_INTERACTIONS
+
+    cap = max_interactions or MAX_INTERACTIONS
+    tasks = []
+    for m in methods:
+        if m == "online":
+            rows = [("online", "online", {"arena": arena, "online": dict(online or {})})]
+        elif m == "offline":
+            rows = [("offline", "offline", {"arena": arena, "generations_cap": generations_cap})]
+        elif m == "baseline":
+            rows = [("baseline", "baseline", {"arena": arena})]
+        elif m in TABULAR:
+            import dataclasses
+
+            from peers.tabular import tuned_config
+
+            rows = [(f"{m}/{sh}", "tabular", {"arena": arena, "shaping": sh, "max_interactions": cap,
+                                              "learner": dataclasses.asdict(tuned_config(m, sh))})
+                    for sh in shapings]
+        elif m in DEEP:
+            from peers.deep import tuned_hyper
+
+            rows = [(f"{m}/{sh}", "deep", {"arena": arena, "shaping": sh, "max_interactions": cap,
+                                           "hyper": tuned_hyper(m)}) for sh in shapings]
+        else:
+            raise ValueError(f"unknown method {m!r}; choose from {', '.join(METHODS)}")
+        for row, kind, config in rows:
+            tasks += [{"method": row, "kind": kind, "seed": s, "config": config, "out": out, "resume": resume}
+                      for s in seeds]
+    return tasks
+
+
+# -- the report --------------------------------------------------------------------------------
 
 
 def _stats(values) -> dict:
@@ -113,12 +212,14 @@ def _fmt(stat: dict) -> str:
     med = stat["median"]
     text = f"{med:,.0f}" if med == int(med) else f"{med:,.1f}"
     if stat["min"] != stat["max"]:
-        text += f" ({stat['min']:,}-{stat['max']:,})"
+        lo, hi = stat["min"], stat["max"]
+        text += f" ({lo:,.0f}-{hi:,.0f})" if float(lo).is_integer() and float(hi).is_integer() and abs(hi) > 9 \
+            else f" ({lo:,.1f}-{hi:,.1f})"
     return text
 
 
 def online_options(items: list[str]) -> dict:
-    """``["download=closest", "loop_cycles=1"]`` -> OnlineConfig fields of the right types."""
+    """``["distance_rule=covered", "loop_cycles=0"]`` -> OnlineConfig fields of the right types."""
     import dataclasses
 
     from cosim.online import OnlineConfig
@@ -137,10 +238,18 @@ def online_options(items: list[str]) -> dict:
 
 
 def build_report(results: dict, arena: str, seeds: list[int]) -> dict:
+    """``results[row][seed]`` -> the report: per row the statistics over ``seeds``."""
     report = {"arena": arena, "seeds": seeds, "paper": PAPER, "methods": {}, "per_seed": results}
-    for method, per_seed in results.items():
-        report["methods"][method] = {key: _stats([per_seed[s].get(key) for s in seeds if s in per_seed])
-                                     for key in ROWS}
+    for row, per_seed in results.items():
+        got = [per_seed[s] for s in seeds if s in per_seed]
+        stats = {key: _stats([r.get(key) for r in got]) for key in ROWS}
+        stats["reached_64"] = sum(1 for r in got if r.get("targets_reached", 0) >= N_TARGETS)
+        stats["seeds_run"] = len(got)
+        stats["interactions_per_seed"] = {s: per_seed[s].get("interactions") for s in seeds if s in per_seed}
+        # where a lifetime was capped short of 64 targets: how far it got
+        stats["capped"] = {s: per_seed[s].get("targets_reached") for s in seeds
+                           if s in per_seed and per_seed[s].get("targets_reached", 0) < N_TARGETS}
+        report["methods"][row] = stats
     on, off = results.get("online", {}), results.get("offline", {})
     ratios = [off[s]["interactions"] / on[s]["interactions"] for s in seeds
               if s in on and s in off and on[s]["interactions"]]
@@ -152,23 +261,54 @@ def build_report(results: dict, arena: str, seeds: list[int]) -> dict:
     return report
 
 
+def _row_order(rows) -> list[str]:
+    order = {m: i for i, m in enumerate(METHODS)}
+    return sorted(rows, key=lambda r: (order.get(r.partition("/")[0], 99), r))
+
+
+def _seed_text(seeds: list[int]) -> str:
+    seeds = sorted(seeds)
+    if seeds and seeds == list(range(seeds[0], seeds[-1] + 1)):
+        return f"{seeds[0]}..{seeds[-1]}" if len(seeds) > 1 else str(seeds[0])
+    return ", ".join(map(str, seeds))
+
+
 def markdown(report: dict) -> str:
-    methods = [m for m in ("online", "offline", "baseline") if m in report["methods"]]
-    names = {"online": "on-line model-based", "offline": "off-line model-free", "baseline": "reactive baseline"}
-    head = "| | " + " | ".join(f"{names[m]} (median, range)" for m in methods) + \
-        " | paper on-line | paper off-line |"
-    lines = [f"# On-line model-based vs off-line model-free ({report['arena']} arena, seeds "
-             f"{report['seeds'][0]}..{report['seeds'][-1]})", "", head,
-             "|" + "---|" * (len(methods) + 3)]
-    for key in ROWS:
-        cells = [_fmt(report["methods"][m][key]) for m in methods]
-        p_on = PAPER["online"].get(key, 64 if key == "targets_reached" else "")
-        p_off = PAPER["offline"].get(key, 64 if key == "targets_reached" else "")
-        lines.append(f"| {key.replace('_', ' ')} | " + " | ".join(cells) +
-                     f" | {p_on:,} | {p_off:,} |")
-    if report.get("online_distance_rule", "covered") != "covered":
-        lines += ["", f"On-line runs with the option dist[a] = {report['online_distance_rule']} (NOT the "
-                  "SPEC's fitness; docs/online.md, round 5)."]
+    rows = _row_order(report["methods"])
+    seeds = report["seeds"]
+    lines = [f"# Every method on the same task ({report['arena']} arena, seeds {_seed_text(seeds)})", "",
+             "| method | reached 64 | interactions to 64: median (range) | crashes | world states | "
+             "transitions | generations | CPU s per lifetime |", "|---|---|---|---|---|---|---|---|"]
+    for row in rows:
+        st = report["methods"][row]
+        cells = [f"{st['reached_64']}/{st['seeds_run']}", _fmt(st["interactions"]), _fmt(st["crashes"]),
+                 _fmt(st["world_states"]), _fmt(st["transitions"]), _fmt(st["generations"]), _fmt(st["cpu_s"])]
+        lines.append(f"| {display_name(row)} | " + " | ".join(cells) + " |")
+    for name, paper in (("paper, on-line", PAPER["online"]), ("paper, off-line", PAPER["offline"])):
+        lines.append(f"| {name} | yes | {paper['interactions']:,} | - | {paper['world_states']} | "
+                     f"{paper['transitions']} | {paper['generations']} | - |")
+    fewer = [f"{display_name(r)}: {report['methods'][r]['seeds_run']}" for r in rows
+             if report["methods"][r]["seeds_run"] < len(seeds)]
+    if fewer:
+        lines += ["", "Rows on fewer seeds (the first ones of the range; CPU at hand): " + "; ".join(fewer) + "."]
+    capped = {row: st["capped"] for row, st in report["methods"].items() if st["capped"]}
+    if capped:
+        lines += ["", "Short of 64 targets (an interaction, generation or crash stop; their interactions are "
+                  "lower bounds): " + "; ".join(
+                      f"{display_name(r)}: " + ", ".join(f"seed {s} at {t}" for s, t in sorted(c.items()))
+                      for r, c in ((r, capped[r]) for r in _row_order(capped)))]
+    tuning = report.get("tuning")
+    if tuning:
+        lines += ["", "Seeds: reported " + _seed_text(seeds) + ". " + tuning]
+    lines += ["", "Every motion executed in the noisy world is one interaction (exploration included); the "
+              "reflex drives the four obstacle-free states in every method. 'shaped': the reward adds the "
+              "progress towards the ball, a distance the 8-bit state does not contain (peers/lifetime.py); "
+              "'unshaped': target, crash and step rewards only. Off-line: interactions of every "
+              "controller the GA evaluated; its crashes end those evaluations and are not counted. "
+              "CPU seconds: the lifetime's worker process."]
+    if report.get("online_distance_rule", "forward") != "forward":
+        lines += ["", f"On-line runs with the option dist[a] = {report['online_distance_rule']} (the "
+                  "paper's first reading, not SPEC section 7; docs/online.md, round 5)."]
     if report.get("online_options"):
         lines += ["", "On-line options: " + ", ".join(f"`{k}={v}`" for k, v in report["online_options"].items())
                   + " (defaults otherwise)."]
@@ -186,34 +326,125 @@ def markdown(report: dict) -> str:
             on = row["online"] if row["online"] is not None else "-"
             off = row["offline"] if row["offline"] is not None else "-"
             lines.append(f"| {row['seed']} | {on} | {off} |")
-    short = {m: sorted(int(s) for s, v in report["per_seed"].get(m, {}).items()
-                       if v.get("targets_reached", 64) < 64) for m in methods}
-    for m, seeds in short.items():
-        if seeds:
-            lines += ["", f"{names[m]}: seed(s) {', '.join(map(str, seeds))} stopped short of 64 targets "
-                      "(a generation or interaction cap); their interactions are lower bounds."]
     online = report["per_seed"].get("online", {})
     if online:
         lines += ["", "On-line learning phases by reason (per seed): " + "; ".join(
             f"{s}: {v.get('phase_reasons')}" for s, v in sorted(online.items()))]
+    if report.get("wall_time_s") is not None:
+        lines += ["", f"Wall time of this comparison: {report['wall_time_s']:,.0f} s ({report.get('executor')})."]
     return "\n".join(lines) + "\n"
 
 
-def main(argv=None) -> int:
+def _curve(target_interactions: list[int], grid: np.ndarray, end: int) -> np.ndarray:
+    """Targets reached after x interactions, for x on ``grid`` (NaN past the lifetime's end
+    ``end`` unless it reached them all: then the count holds)."""
+    y = np.searchsorted(np.asarray(target_interactions, dtype=float), grid, side="right").astype(float)
+    if len(target_interactions) < N_TARGETS:
+        y[grid > end] = len(target_interactions)  # capped: stays where it stopped
+    return y
+
+
+def write_plot(report: dict, path: Path) -> Path:
+    """Targets reached against interactions: per method the median over the seeds and its range
+    (dashed: unshaped rewards; off-line: targets of its best controller so far)."""
+    from sim_world.render import _plt
+
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(8, 5), dpi=110)
+    ends = [r.get("interactions") or 1 for per in report["per_seed"].values() for r in per.values()]
+    grid = np.unique(np.geomspace(10, max(max(ends, default=10), 100) * 1.05, 600).round())
+    colours = dict(zip(METHODS, plt.get_cmap("tab10").colors))
+    for row in _row_order(report["methods"]):
+        per = report["per_seed"][row]
+        curves = [_curve(r.get("target_interactions") or [], grid, r.get("interactions") or 0)
+                  for s, r in per.items() if "target_interactions" in r]
+        if not curves:
+            continue
+        ys = np.vstack(curves)
+        colour = colours.get(row.partition("/")[0], "grey")
+        style = "--" if row.endswith("/unshaped") else "-"
+        ax.fill_between(grid, ys.min(axis=0), ys.max(axis=0), color=colour, alpha=0.12, linewidth=0)
+        med = report["methods"][row]["interactions"]["median"]
+        label = f"{display_name(row)} (median {med:,.0f})" if med is not None else display_name(row)
+        ax.plot(grid, np.median(ys, axis=0), color=colour, linestyle=style, label=label, linewidth=1.6)
+    ax.axvline(PAPER["online"]["interactions"], color="k", linestyle=":", linewidth=1)
+    ax.text(PAPER["online"]["interactions"], 1, " paper on-line\n 12,280", fontsize=7, va="bottom")
+    ax.set_xscale("log")
+    ax.set_ylim(0, N_TARGETS + 1)
+    ax.set_xlabel("interactions (motions executed in the noisy world)")
+    ax.set_ylabel("targets reached")
+    ax.set_title(f"Targets reached against interactions, median and range over seeds "
+                 f"{_seed_text(report['seeds'])}", fontsize=9)
+    ax.grid(True, which="both", alpha=0.25)
+    ax.legend(fontsize=7, loc="upper left")
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path)
+    plt.close(fig)
+    return path
+
+
+# -- adaptation ------------------------------------------------------------------------------
+
+
+def fixed_controller_adaptation(genome_hex: str, arena: str, seed: int, bit: int, after: int,
+                                window: int = ADAPT_WINDOW, max_leg_steps: int | None = None) -> dict:
+    """The fixed off-line controller, IR bit ``bit`` blinded, from the pose that follows target
+    ``after``: interactions for the next ``window`` targets (None if a leg times out), and
+    ``states_with_bit``: how many of the states it met have that bit set (0 when blinded)."""
+    from cosim.online import OnlineConfig
+    from ga.genome import rows_from_hex
+    from ga.truth_table import truth_tables
+    from sim_world.course import run_course
+    from sim_world.world import DEFAULT_NOISE, Fault, World
+
+    max_leg_steps = max_leg_steps or OnlineConfig().max_leg_steps
+    world = World(arena, noise=DEFAULT_NOISE, faults=(Fault(at_step=0, bit=bit),), seed=seed)
+    table = truth_tables(rows_from_hex(genome_hex), reflex=True)
+    res = run_course(world, table, max_leg_steps, n_targets=window, start=(after - 1) % N_TARGETS,
+                     stop_on_crash=False)
+    return {"targets": res.targets_reached, "interactions": res.steps, "crashes": res.crashes,
+            "timed_out": res.timed_out, "states_with_bit": sum(1 for s in res.states if s >> bit & 1),
+            "interactions_for_next_targets": res.steps if res.targets_reached == window else None}
+
+
+# -- command line ----------------------------------------------------------------------------
+
+
+def _error(message: str) -> int:
+    print(f"error: {message}", file=sys.stderr)
+    return 2
+
+
+def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m cosim.compare", description=__doc__.split("\n")[0])
-    p.add_argument("--seeds", type=int, default=5, help="seeds 1..N (default 5)")
+    p.add_argument("--seeds", type=int, default=5, help="seeds first..first+N-1 (default 5)")
+    p.add_argument("--first-seed", type=int, default=1, help="the first seed (default 1)")
+    p.add_argument("--methods", default=",".join(DEFAULT_METHODS),
+                   help=f"comma-separated, from {','.join(METHODS)} (default: all but {','.join(OPTIONAL)})")
+    p.add_argument("--shaping", default=",".join(SHAPINGS),
+                   help="reward variants of the RL methods: shaped, unshaped or both (default both)")
     p.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
+    p.add_argument("--cluster", default=None, metavar="local|ADDRESS",
+                   help="run the lifetimes on Dask: 'local' starts a LocalCluster of --jobs workers on "
+                        "127.0.0.1; an address (tcp://host:8786) joins that scheduler")
     p.add_argument("--arena", default="default")
     p.add_argument("--out", type=Path, default=Path("results"))
-    p.add_argument("--methods", default="online,offline,baseline")
+    p.add_argument("--fresh", action="store_true", help="ignore cached lifetimes (they are overwritten)")
+    p.add_argument("--cache", type=Path, default=None, help="the lifetime cache (default <out>/compare/cache)")
+    p.add_argument("--limit-seeds", action="append", default=[], metavar="ROW=N",
+                   help="run only the first N seeds for ROW, a method or method/shaping "
+                        "(e.g. offline=5,q-learning/unshaped=10): slow rows on fewer seeds")
+    p.add_argument("--max-interactions", type=int, default=None,
+                   help="cap of an RL lifetime (default 100,000, as the on-line run's)")
     p.add_argument("--generations-cap", type=int, default=None, help="off-line generation cap")
-    p.add_argument("--resume", action="store_true", help="continue interrupted runs from their checkpoints")
-    p.add_argument("--first-seed", type=int, default=1, help="the seeds are first..first+N-1 (default 1)")
-    p.add_argument("--distance", choices=("covered", "forward"), default="covered",
-                   help="dist[a] of the on-line fitness: covered = SPEC section 7; forward = NOT the "
-                        "SPEC, backward steps cover 0 (docs/online.md, round 5)")
+    p.add_argument("--resume", action="store_true",
+                   help="on-line/off-line runs not in the cache continue from their checkpoints")
+    p.add_argument("--distance", choices=("covered", "forward"), default="forward",
+                   help="dist[a] of the on-line fitness: forward = SPEC section 7, backward steps "
+                        "cover 0; covered = the paper's first reading (docs/online.md, round 5)")
     p.add_argument("--online", action="append", default=[], metavar="KEY=VALUE",
-                   help="an OnlineConfig field for the on-line runs, e.g. download=closest (repeatable)")
+                   help="an OnlineConfig field for the on-line runs, e.g. loop_cycles=0 (repeatable)")
     p.add_argument("--blind-bit", type=int, default=None)
     p.add_argument("--blind-after-target", type=int, default=None)
     p.add_argument("--adaptation-only", action="store_true",
@@ -222,52 +453,117 @@ def main(argv=None) -> int:
     p.add_argument("--reuse", action="store_true",
                    help="take the methods not run now (not in --methods) from the existing <out>/compare.json")
     p.add_argument("--render", type=Path, default=None, metavar="JSON",
-                   help="only rewrite compare.md from an existing compare.json")
-    args = p.parse_args(argv)
+                   help="only rewrite compare.md and compare.png from an existing compare.json")
+    return p
+
+
+def _load_report(path: Path) -> dict:
+    report = json.loads(path.read_text())
+    report["per_seed"] = {m: {int(s): v for s, v in per.items()} for m, per in report["per_seed"].items()}
+    return report
+
+
+def main(argv=None) -> int:
+    args = build_parser().parse_args(argv)
     if args.render is not None:
-        text = markdown(json.loads(args.render.read_text()))
+        if not args.render.exists():
+            return _error(f"no such file: {args.render}")
+        report = _load_report(args.render)
+        text = markdown(report)
         (args.render.parent / "compare.md").write_text(text)
+        write_plot(report, args.render.parent / "compare.png")
         print(text)
         return 0
+    methods = [m.strip() for m in args.methods.split(",") if m.strip()]
+    bad = [m for m in methods if m not in METHODS]
+    if bad:
+        return _error(f"unknown method(s) {', '.join(bad)}; choose from {', '.join(METHODS)}")
+    shapings = [s.strip() for s in args.shaping.split(",") if s.strip()]
+    if not shapings or any(s not in SHAPINGS for s in shapings):
+        return _error(f"--shaping takes {' and/or '.join(SHAPINGS)}, got {args.shaping!r}")
+    if any(m in DEEP for m in methods):
+        try:
+            import stable_baselines3  # noqa: F401
+        except ImportError:
+            return _error("dqn and ppo need the optional extra: pip install -e '.[rl]'")
+    if args.seeds < 1 or args.jobs < 1:
+        return _error("--seeds and --jobs must be at least 1")
+    if (args.blind_bit is None) != (args.blind_after_target is None):
+        return _error("--blind-bit and --blind-after-target go together")
+    if args.adaptation_only and not (args.out / "compare.json").exists():
+        return _error(f"--adaptation-only needs an existing {args.out / 'compare.json'}")
+    from cosim.sweep import Cache, executor, run_sweep
+
     seeds = list(range(args.first_seed, args.first_seed + args.seeds))
-    online = {} if args.distance == "covered" else {"distance_rule": args.distance}
+    online = {} if args.distance == "forward" else {"distance_rule": args.distance}
     online.update(online_options(args.online))
-    methods = args.methods.split(",")
     out = args.out / "compare"
-    base = {"arena": args.arena, "out": str(out), "resume": args.resume, "generations_cap": args.generations_cap}
-    tasks = [] if args.adaptation_only else [{**base, "method": m, "seed": s, "online": online}
-                                             for m in methods for s in seeds]
+    common = dict(arena=args.arena, out=str(out), online=online, generations_cap=args.generations_cap,
+                  max_interactions=args.max_interactions, resume=args.resume)
+    tasks = [] if args.adaptation_only else make_tasks(methods, seeds, shapings=shapings, **common)
+    limits = {}
+    for item in ",".join(args.limit_seeds).split(","):
+        row, sep, n = item.strip().partition("=")
+        if not item.strip():
+            continue
+        if not sep or not n.isdigit() or row.partition("/")[0] not in METHODS:
+            return _error(f"--limit-seeds wants ROW=N with ROW a method or method/shaping, got {item!r}")
+        limits[row] = int(n)
+
+    def kept(task):
+        n = limits.get(task["method"], limits.get(task["method"].partition("/")[0]))
+        return n is None or task["seed"] < args.first_seed + n
+
+    tasks = [t for t in tasks if kept(t)]
     if args.blind_bit is not None:
-        tasks += [{**base, "method": "online", "seed": s, "adapt": True, "out": str(out / "adaptation"),
-                   "online": {**online, "blind_bit": args.blind_bit, "blind_after_target": args.blind_after_target}}
-                  for s in seeds]
+        adapt = {**online, "blind_bit": args.blind_bit, "blind_after_target": args.blind_after_target}
+        tasks += [{**t, "method": "online-adaptation", "out": str(out / "adaptation")}
+                  for t in make_tasks(["online"], seeds, **{**common, "online": adapt})]
     # The slow off-line runs first, so the pool stays busy.
-    tasks.sort(key=lambda t: {"offline": 0, "online": 1, "baseline": 2}[t["method"]])
-    results: dict = {m: {} for m in methods}
-    adapted: dict = {}
+    tasks.sort(key=lambda t: {"offline": 0, "online": 1, "deep": 2}.get(t["kind"], 3))
+    cache = Cache(args.cache or out / "cache", read=not args.fresh)
+
+    def report_progress(task, result, cached):
+        print(f"{task['method']:28s} seed {task['seed']}: interactions {result.get('interactions'):,} "
+              f"targets {result.get('targets_reached')}" +
+              (" (cached)" if cached else f" ({result.get('task_wall_s', 0):.0f} s)"), flush=True)
+
     t0 = time.perf_counter()
-    with ProcessPoolExecutor(max_workers=max(1, args.jobs)) as pool:
-        futures = [(t, pool.submit(_run, t)) for t in tasks]
-        for task, fut in futures:
-            method, seed, result = fut.result()
-            (adapted if task.get("adapt") else results[method])[seed] = result
-            print(f"{method:8s} seed {seed}: interactions {result.get('interactions'):,} "
-                  f"targets {result.get('targets_reached')} ({result['task_wall_s']:.0f} s)", flush=True)
-    if args.reuse and not args.adaptation_only and (args.out / "compare.json").exists():
-        saved = json.loads((args.out / "compare.json").read_text())
-        for m, per in saved["per_seed"].items():
-            if m not in results or not results[m]:
-                results[m] = {int(s): v for s, v in per.items() if int(s) in seeds}
-    if args.adaptation_only:
-        saved = json.loads((args.out / "compare.json").read_text())
-        results = {m: {int(s): v for s, v in per.items()} for m, per in saved["per_seed"].items()}
-        for s in seeds:
-            path = out / "model_free" / f"seed_{s}" / "summary.json"
-            if s in results.get("offline", {}) and path.exists():
-                results["offline"][s]["best_genome"] = json.loads(path.read_text()).get("best_genome")
+    try:
+        with executor(args.jobs, args.cluster) as pool:
+            finished = run_sweep(run_task, tasks, pool, cache, on_result=report_progress)
+    except ConnectionError as exc:
+        return _error(str(exc))
+    results: dict = {}
+    adapted: dict = {}
+    for task, result in zip(tasks, finished):
+        if task["method"] == "online-adaptation":
+            adapted[task["seed"]] = result
+        else:
+            results.setdefault(task["method"], {})[task["seed"]] = result
+    if (args.reuse or args.adaptation_only) and (args.out / "compare.json").exists():
+        saved = _load_report(args.out / "compare.json")
+        for row, per in saved["per_seed"].items():
+            if row not in results:
+                results[row] = {s: v for s, v in per.items() if s in seeds}
+        if args.adaptation_only:
+            for s in seeds:
+                path = out / "model_free" / f"seed_{s}" / "summary.json"
+                if s in results.get("offline", {}) and path.exists():
+                    results["offline"][s]["best_genome"] = json.loads(path.read_text()).get("best_genome")
     report = build_report(results, args.arena, seeds)
     report["online_distance_rule"] = args.distance
     report["online_options"] = online
+    from peers.tabular import TUNED, TUNING_SEEDS
+
+    if any(r.partition("/")[0] in TABULAR + DEEP for r in results):
+        used = sorted(set(seeds) & set(TUNING_SEEDS))
+        report["tuning"] = (f"The tabular learners' hyper-parameters were chosen on seeds {_seed_text(TUNING_SEEDS)} "
+                            f"(experiments/tune_tabular.py){'' if TUNED else ' -- not yet run: defaults'}; "
+                            + (f"**seeds {used} were used for tuning**." if used else
+                               "none of the reported seeds was.") +
+                            " DQN and PPO run stable-baselines3's defaults with the settings in peers/deep.py "
+                            "(not tuned on any seed).")
     if args.blind_bit is not None:
         rows = []
         for s in seeds:
@@ -280,12 +576,16 @@ def main(argv=None) -> int:
             rows.append({"seed": s, "online": on, "offline": off})
         report["adaptation"] = {"bit": args.blind_bit, "after": args.blind_after_target, "per_seed": rows}
     report["wall_time_s"] = round(time.perf_counter() - t0, 1)
+    report["executor"] = (f"Dask cluster {args.cluster}" if args.cluster else "local process pool") + \
+        f", {args.jobs} worker(s)"
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "compare.json").write_text(json.dumps(report, indent=1) + "\n")
     text = markdown(report)
     (args.out / "compare.md").write_text(text)
+    write_plot(report, args.out / "compare.png")
     print(text)
-    print(f"wrote {args.out / 'compare.md'} and {args.out / 'compare.json'} ({report['wall_time_s']:.0f} s)")
+    print(f"wrote {args.out / 'compare.md'}, {args.out / 'compare.json'} and {args.out / 'compare.png'} "
+          f"({report['wall_time_s']:.0f} s)")
     return 0
 
 

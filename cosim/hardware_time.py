@@ -11,9 +11,9 @@ from __future__ import annotations
 
 import os
 
+from ga.genome import N_ROWS
+
 CLOCK_HZ = 12e6  # iCEBreaker oscillator
-ROWS = 50  # row writes per controller (ga.genome.N_ROWS)
-P_MAX = 512  # controllers per stream (hdl.system_top.P_MAX)
 
 
 def clock_hz_default() -> float:
@@ -28,18 +28,21 @@ def clock_hz_default() -> float:
     return hz
 
 
-def stream_cycles(population: int, n_states: int, p_max: int = P_MAX) -> int:
+def stream_cycles(population: int, n_states: int, p_max: int | None = None) -> int:
     """Cycles (``pop_cycles``, summed over streams of at most ``p_max``) to evaluate ``population``
     controllers on a model of ``n_states`` states: per stream of P, the ``go`` edge, 50 row writes
     of the first controller, then one controller every max(50, N + 2) cycles (the next one's rows
     are written while this one is evaluated, N + 1 cycles), the last one's N + 1 cycles, and the
-    edge that raises ``pop_done``: 53 + N + (P - 1) max(50, N + 2)."""
+    edge that raises ``pop_done``: 53 + N + (P - 1) max(50, N + 2). ``p_max``: the streamer's
+    population RAM depth (default ``hdl.system_top.P_MAX``)."""
     if population < 0 or n_states < 0:
         raise ValueError(f"population and n_states must be >= 0, got {population!r}, {n_states!r}")
+    if p_max is None:
+        from hdl.system_top import P_MAX as p_max  # Amaranth only when a run is summarised
     total = 0
     for first in range(0, population, p_max):
         p = min(p_max, population - first)
-        total += 3 + ROWS + n_states + (p - 1) * max(ROWS, n_states + 2)
+        total += 3 + N_ROWS + n_states + (p - 1) * max(N_ROWS, n_states + 2)
     return total
 
 

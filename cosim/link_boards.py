@@ -4,8 +4,7 @@
     make sim BACKEND=serial PORT=/dev/ttyUSB1                 one ULX3S (ehw-system)
     make sim BACKEND=serial PORT=/dev/ttyUSB1 PORT2=/dev/ttyUSB3   two iCEBreakers (controller, evaluator)
 
-(``EHW_PORT``, ``EHW_PORT2``, ``EHW_BAUD`` in the environment; ``python -m cosim.online
---backend serial``.) The same board classes serve the ``uart`` backend (``cosim.uart_backend``),
+(``EHW_PORT``, ``EHW_PORT2``, ``EHW_BAUD`` in the environment; ``ehw sim --backend serial``.) The same board classes serve the ``uart`` backend (``cosim.uart_backend``),
 where the stream is the simulated serial line of the board top in Verilator.
 
 - :class:`LinkControllerBoard`: LOAD_CONTROLLER (rows + commit in one frame), SET_REFLEX, MOTION.
@@ -220,29 +219,3 @@ def link_summary(controller, evaluator) -> dict:
         if controller.client is evaluator.client:
             break
     return out
-
-
-def main_from_args(args, config) -> int:
-    """``python -m cosim.online --backend serial|uart``: run, print the summary; a LinkError is
-    one ``error:`` line and exit 2."""
-    import sys
-
-    if args.backend == "uart":
-        from cosim.uart_backend import main_from_args as uart_main
-
-        return uart_main(args, config)
-    from cosim.online import make_run, summary_table, write_results
-
-    from cosim.checkpoint import CheckpointError
-
-    try:
-        run = make_run(config, "serial", args.out, resume=args.resume, progress=not args.no_progress)
-        run.run()
-    except (LinkError, CheckpointError) as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 2
-    summary = write_results(run, args.out, plots=not args.no_plots)
-    print(summary_table(summary))
-    print(f"link: {link_summary(run.controller, run.evaluator)}")
-    print(f"wrote {args.out / 'summary.json'}")
-    return 0

@@ -21,6 +21,8 @@ from dataclasses import dataclass, field
 
 from amaranth.lib import data
 
+from cosim.errors import UserError
+
 from hdl.link import (COUNTERS_REPLY, CRC_BYTES, EVALUATE_REPLY, EVALUATE_REQUEST, HEADER_BYTES,
                       IDENTIFY_REPLY, LINK_CRC, LOAD_GENOME_REQUEST, MOTION_REPLY, MOTION_REQUEST,
                       NAME_BYTES, OBSERVE_REQUEST, READ_RESULTS_REQUEST, REFLEX_REQUEST,
@@ -32,8 +34,9 @@ PIPELINE = 2  # LOAD_GENOME frames in flight (the board answers one while the ne
 RETRY_STATUSES = (Status.BAD_CRC, Status.TRUNCATED)
 
 
-class LinkError(RuntimeError):
-    """A board that is absent, silent, of the wrong design, or that refused a request."""
+class LinkError(UserError):
+    """A board that is absent, silent, of the wrong design, or that refused a request: one
+    ``error:`` line naming the port (``cosim.errors``)."""
 
 
 class NotLoaded(LinkError):

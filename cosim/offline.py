@@ -2,7 +2,7 @@
 
 A GA (population 20, tournament 5, elitism) evolves controllers in the noise-free world: every
 individual of every generation drives the robot from the start pose through the 64 relocation
-poses (`ga.model_free.evaluate`). The run stops when the best individual reaches the target 64
+poses (:func:`evaluate`, scored by `ga.model_free.model_free_fitness`). The run stops when the best individual reaches the target 64
 times, or at a generation cap. Then the best controller is "downloaded to the real robot": it
 drives the noisy world (`sim_world.world.DEFAULT_NOISE`) and we count the targets it reaches
 before its first crash.
@@ -30,16 +30,21 @@ import json
 import multiprocessing
 import time
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
 from cosim.checkpoint import load_checkpoint, save_checkpoint
+from cosim.runs import atomic_savefig, atomic_write_json
 from ga.evolution import GAConfig, GeneticAlgorithm
 from ga.genome import hex_from_rows, rows_from_hex
-from ga.model_free import N_TARGETS, Evaluation, evaluate, fitness_vector, max_run_steps
+from cosim.paper import PAPER_OFFLINE as PAPER
+from ga.genome import validate_rows
+from ga.model_free import N_TARGETS, max_run_steps, model_free_fitness
 from ga.truth_table import truth_tables
+from sim_world.course import run_course
 
 KIND = "model_free"
 DEFAULT_OUT = Path("results/model_free")
@@ -49,16 +54,6 @@ DEFAULT_GENERATIONS_CAP = 3000
 DEFAULT_MAX_LEG_STEPS = 150
 TRANSFER_TRIALS = 10  # noisy-world runs of the best controller, noise seeds seed*1000 + i
 
-# The paper's model-free row (section 5.1), reported beside ours.
-PAPER = {
-    "generations": 285,
-    "interactions": 3_283_269,
-    "world_states": 122,
-    "transitions": 744,
-    "genetic_operations": 5_700,
-}
-
-
 def default_ga_config(**overrides) -> GAConfig:
     """Paper section 5.1: population 20, tournament 5, elitism 1; our operator rates, plus the
     directed mutation at 0.3 writing an 8-literal term (the failure state alone). See the
@@ -67,9 +62,44 @@ def default_ga_config(**overrides) -> GAConfig:
                        "directed_literals": 8, **overrides})
 
 
-# ---------------------------------------------------------------------------------------------
-# Evaluation (also run in worker processes: module-level functions, one world per process)
-# ---------------------------------------------------------------------------------------------
+# -- Evaluation (also run in worker processes: module-level functions, one world per process) ----
+
+@dataclass(frozen=True)
+class Evaluation:
+    """One controller's model-free run: its fitness and what the run met."""
+
+    fitness: float
+    targets_reached: int
+    steps: int  # interactions
+    crashed: bool
+    timed_out: bool
+    final_distance_mm: float
+    states: frozenset  # world states met
+    transitions: frozenset  # (state, motion, next state, crashed) met
+    failure_state: int | None = None  # the state the run ended in, if it crashed or got stuck
+
+
+def evaluate(world, rows, max_leg_steps: int, n_targets: int = N_TARGETS, reflex: bool = True) -> Evaluation:
+    """Drive ``world`` (a `sim_world.world.World`) with one genome through the course and score it
+    (`ga.model_free.model_free_fitness`)."""
+    rows = validate_rows(rows)
+    if rows.ndim != 1:
+        raise ValueError(f"evaluate takes one genome of shape (50,), got {rows.shape!r}")
+    res = run_course(world, truth_tables(rows, reflex=reflex), max_leg_steps, n_targets=n_targets)
+    # After a crash the pose is restored, so the state now is the one whose motion crashed; after
+    # a time-out it is a state of the loop the robot was caught in.
+    failed = res.crashed or res.timed_out
+    fitness = model_free_fitness(res.targets_reached, res.final_distance_mm, world.arena.size_mm,
+                                 res.steps, max_run_steps(max_leg_steps, n_targets))
+    return Evaluation(
+        fitness=fitness, targets_reached=int(res.targets_reached), steps=int(res.steps),
+        crashed=bool(res.crashed), timed_out=bool(res.timed_out),
+        final_distance_mm=float(res.final_distance_mm),
+        states=frozenset(int(s) for s in res.states),
+        transitions=frozenset(tuple(int(v) for v in t) for t in res.transitions),
+        failure_state=int(world.state()) if failed else None,
+    )
+
 
 _WORLDS: dict = {}
 
@@ -150,9 +180,7 @@ class Evaluator:
         self.close()
 
 
-# ---------------------------------------------------------------------------------------------
-# The run
-# ---------------------------------------------------------------------------------------------
+# -- The run -------------------------------------------------------------------------------------
 
 
 def _arena_digest(arena: str) -> str:
@@ -238,7 +266,7 @@ def run_offline(
                 driven = evaluator.simulated_steps
                 evals = evaluator(pop)
                 state["simulated_interactions"] += evaluator.simulated_steps - driven
-                fitness = fitness_vector(evals)
+                fitness = np.array([e.fitness for e in evals], dtype=float)
                 ga.tell(fitness, failures=[e.failure_state for e in evals])
                 i = int(np.argmax(fitness))  # the same individual tell() took as best
                 best = evals[i]
@@ -284,13 +312,11 @@ def run_offline(
     if transfer_trials:
         summary["transfer"] = transfer(summary["best_genome"], arena, max_leg_steps, n_targets, seed,
                                        transfer_trials)
-    (out / "history.json").write_text(json.dumps(state["history"], indent=1) + "\n")
+    atomic_write_json(out / "history.json", state["history"])
     if plots:
         summary["figures"] = plot_results(out, state["history"], summary["best_genome"], arena,
                                           max_leg_steps, n_targets)
-    tmp = out / "summary.json.tmp"
-    tmp.write_text(json.dumps(summary, indent=2) + "\n")
-    tmp.replace(out / "summary.json")
+    atomic_write_json(out / "summary.json", summary, indent=2)
     return summary
 
 
@@ -322,16 +348,13 @@ def _summary(seed, state, config, ga_config: GAConfig, workers, reached_all) -> 
     }
 
 
-# ---------------------------------------------------------------------------------------------
-# Transfer to the "real" (noisy) world
-# ---------------------------------------------------------------------------------------------
+# -- Transfer to the "real" (noisy) world --------------------------------------------------------
 
 
 def transfer(genome_hex: str | None, arena: str, max_leg_steps: int, n_targets: int, seed: int,
              trials: int = TRANSFER_TRIALS) -> dict:
     """Drive the noisy world with the best controller: targets reached before the first crash
     (or a leg time-out), over ``trials`` noise seeds ``seed * 1000 + i``."""
-    from sim_world.course import run_course
     from sim_world.world import DEFAULT_NOISE, World
 
     if genome_hex is None:
@@ -355,9 +378,7 @@ def transfer(genome_hex: str | None, arena: str, max_leg_steps: int, n_targets: 
     }
 
 
-# ---------------------------------------------------------------------------------------------
-# Figures
-# ---------------------------------------------------------------------------------------------
+# -- Figures -------------------------------------------------------------------------------------
 
 
 def plot_results(out: Path, history: list, genome_hex: str | None, arena: str, max_leg_steps: int,
@@ -381,11 +402,10 @@ def plot_results(out: Path, history: list, genome_hex: str | None, arena: str, m
         ax2.set_ylabel("fitness of the best (targets + R2 + R3)", color="tab:red")
         ax1.set_title("Model-free evolution: the best individual per generation (cf. paper Fig. 6)")
         fig.tight_layout()
-        fig.savefig(out / "fig6_best_per_generation.png", dpi=120)
+        atomic_savefig(fig, out / "fig6_best_per_generation.png", dpi=120)
         plt.close(fig)
         files["fig6"] = "fig6_best_per_generation.png"
     if genome_hex is not None:
-        from sim_world.course import run_course
         from sim_world.world import World
 
         world = World(_load_arena(arena))
@@ -394,50 +414,14 @@ def plot_results(out: Path, history: list, genome_hex: str | None, arena: str, m
         title = (f"Best model-free controller: {res.targets_reached} targets, {res.steps} steps "
                  "(cf. paper Fig. 5)")
         path = out / "fig5_trajectory.png"
-        try:
-            from sim_world.render import plot_trajectory
-        except ImportError:
-            plot_trajectory = None
-        if plot_trajectory is not None:
-            plot_trajectory(world.arena, res.trajectory, path, title=title)
-        else:
-            _plot_trajectory_fallback(world.arena, res.trajectory, path, title)
+        from sim_world.render import plot_trajectory
+
+        plot_trajectory(world.arena, res.trajectory, path, title=title)
         files["fig5"] = path.name
     return files
 
 
-def _plot_trajectory_fallback(arena, trajectory, path: Path, title: str) -> None:
-    import matplotlib.pyplot as plt
-    from matplotlib.patches import Circle, Polygon
-
-    fig, ax = plt.subplots(figsize=(6, 6))
-    for ob in arena.obstacles:
-        if ob.is_circle:
-            ax.add_patch(Circle(ob.centre, ob.radius, color="0.6"))
-        else:
-            ax.add_patch(Polygon(ob.vertices, closed=True, color="0.6"))
-    ax.add_patch(Circle(arena.ball, arena.target_radius_mm, color="tab:orange", alpha=0.5))
-    xs, ys = [], []
-    for x, y, _, event in trajectory:
-        xs.append(x)
-        ys.append(y)
-        if event == "relocate":
-            ax.plot(xs[:-1], ys[:-1], lw=0.6, color="tab:blue")
-            xs, ys = [x], [y]
-        elif event == "crash":
-            ax.plot([x], [y], "x", color="red")
-    ax.plot(xs, ys, lw=0.6, color="tab:blue")
-    ax.set_xlim(0, arena.size_mm)
-    ax.set_ylim(0, arena.size_mm)
-    ax.set_aspect("equal")
-    ax.set_title(title, fontsize=9)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-
-
-# ---------------------------------------------------------------------------------------------
-# Several seeds: the table beside the paper's row
-# ---------------------------------------------------------------------------------------------
+# -- Several seeds: the table beside the paper's row ---------------------------------------------
 
 TABLE_KEYS = ("generations", "interactions", "world_states", "transitions", "genetic_operations")
 
@@ -468,46 +452,29 @@ def seeds_table(summaries: list[dict]) -> str:
     return "\n".join(lines) + "\n"
 
 
-# ---------------------------------------------------------------------------------------------
-# Command line
-# ---------------------------------------------------------------------------------------------
+# -- Command line --------------------------------------------------------------------------------
 
 
-def main(argv=None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--seed", type=int, default=1, help="GA seed (default 1)")
+def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
+    """The off-line experiment's options (``ehw offline``; the shared --seed/--out/--resume/
+    --force/--quiet/--config come from ``cosim.cli``)."""
+    parser.add_argument("--seed", type=int, default=1, help="GA seed")
     parser.add_argument("--generations-cap", type=int, default=DEFAULT_GENERATIONS_CAP,
-                        help=f"stop after this many generations (default {DEFAULT_GENERATIONS_CAP})")
-    parser.add_argument("--workers", type=int, default=1, help="evaluation processes (default 1: serial)")
-    parser.add_argument("--resume", action="store_true", help="continue from <out>/checkpoint.json")
-    parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help=f"output folder (default {DEFAULT_OUT})")
-    parser.add_argument("--arena", default=DEFAULT_ARENA, help="arena name or .json path (default 'default')")
+                        help="stop after this many generations")
+    parser.add_argument("--workers", type=int, default=1, help="evaluation processes (1: serial)")
+    parser.add_argument("--arena", default=DEFAULT_ARENA, help="arena name or .json path")
     parser.add_argument("--max-leg-steps", type=int, default=DEFAULT_MAX_LEG_STEPS,
-                        help=f"step limit of one leg (default {DEFAULT_MAX_LEG_STEPS})")
-    parser.add_argument("--no-plots", action="store_true", help="skip the figures")
-    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+                        help="step limit of one leg")
+    parser.add_argument("--no-plots", action="store_true",
+                        help="write no figures (an earlier run's figures are removed all the same)")
     parser.add_argument("--table", nargs="+", type=Path, metavar="SUMMARY",
                         help="print the Markdown table of these summary.json files and exit")
-    args = parser.parse_args(argv)
-    if args.table:
-        print(seeds_table([json.loads(p.read_text()) for p in args.table]), end="")
-        return
-    summary = run_offline(
-        args.seed, generations_cap=args.generations_cap, workers=args.workers, resume=args.resume,
-        out=args.out, arena=args.arena, max_leg_steps=args.max_leg_steps, progress=not args.quiet,
-        plots=not args.no_plots,
-    )
-    _WORLDS.clear()  # free the pymunk spaces now, not during interpreter shutdown
-    keys = ("seed", "reached_all_targets", "targets_reached", "generations", "genetic_operations",
-            "interactions", "world_states", "transitions", "wall_time_s")
-    for k in keys:
-        print(f"{k:22s} {summary[k]}")
-    if summary.get("transfer"):
-        t = summary["transfer"]
-        print(f"{'transfer (noisy world)':22s} targets before a crash: {t['targets_without_crash']}")
-    print(f"wrote {Path(args.out) / 'summary.json'}")
+    return parser
 
 
-if __name__ == "__main__":
-    main()
+if __name__ == "__main__":  # ``python -m cosim.offline`` is ``ehw offline``
+    import sys
+
+    from cosim.cli import main
+
+    raise SystemExit(main(["offline", *sys.argv[1:]]))

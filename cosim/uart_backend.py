@@ -269,7 +269,8 @@ async def start_top(dut, baud: float, timeout: float, line: str = "cocotbext"):
 def _experiment(config: dict, options: dict) -> dict:
     """The blocking experiment (runs in cocotb's bridge thread)."""
     from cosim.link_boards import link_summary
-    from cosim.online import OnlineConfig, make_run, write_results
+    from cosim.online import OnlineConfig, make_run
+    from cosim.online_report import write_results
 
     cfg = OnlineConfig(**config)
     out = Path(options["out"])
@@ -358,9 +359,9 @@ def run_online_uart(config, out: Path | str, *, baud: float | None = None, resum
     return json.loads((out / "summary.json").read_text())
 
 
-def main_from_args(args, config) -> int:
-    """``python -m cosim.online --backend uart ...``: launch the simulation, print its summary."""
-    from cosim.online import summary_table
+def launch(config, args) -> int:
+    """``ehw sim --backend uart ...``: launch the simulation, print its summary and the link's figures."""
+    from cosim.online_report import summary_table
 
     baud = sim_baud_default()
     print(f"uart backend: SystemLinkTop in Verilator at {SIM_CLK_HZ / 1e6:g} MHz, {baud:,.0f} baud")

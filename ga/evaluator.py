@@ -32,7 +32,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ga.genome import validate_rows
-from ga.motions import MAX_MOTION_DISTANCE_MM, N_MOTIONS, N_STATES, OBSTACLE_MASK, motion_distances
+from ga.motions import (DEFAULT_DISTANCE_RULE, MAX_MOTION_DISTANCE_MM, N_MOTIONS, N_STATES, OBSTACLE_MASK,
+                        motion_distances)
 from ga.truth_table import motion_of, truth_tables
 from ga.world_model import WorldModel
 
@@ -76,10 +77,10 @@ def fitness(result: EvalResult, n_states: int) -> np.ndarray:
 # -- the pseudo-code, one genome ------------------------------------------------------------------
 
 
-def trace_counts(motion, model: WorldModel, distance_rule: str = "covered") -> tuple[int, int, int]:
+def trace_counts(motion, model: WorldModel, distance_rule: str = DEFAULT_DISTANCE_RULE) -> tuple[int, int, int]:
     """The SPEC pseudo-code for one controller given as ``motion(state) -> code`` (a callable,
     or a 256-entry truth table). Returns (crashes, loops, distance). ``distance_rule``: dist[a],
-    ``ga.motions.DISTANCE_RULES`` ("covered" is the SPEC)."""
+    ``ga.motions.DISTANCE_RULES`` ("forward" is the SPEC)."""
     if not callable(motion):
         table = [int(v) for v in np.asarray(motion).reshape(-1)]
         if len(table) != N_STATES:
@@ -117,7 +118,7 @@ def trace_counts(motion, model: WorldModel, distance_rule: str = "covered") -> t
 
 
 def evaluate_python(rows, model: WorldModel, reflex: bool = True,
-                    distance_rule: str = "covered") -> tuple[int, int, int]:
+                    distance_rule: str = DEFAULT_DISTANCE_RULE) -> tuple[int, int, int]:
     """(crashes, loops, distance) of one genome (50,) by the plain pseudo-code, the motion of each
     visited state computed by the plain row-by-row evaluation ``ga.truth_table.motion_of``."""
     rows = validate_rows(rows)
@@ -129,9 +130,9 @@ def evaluate_python(rows, model: WorldModel, reflex: bool = True,
 # -- the vectorised population evaluator ----------------------------------------------------------
 
 
-def evaluate_tables(tables, model: WorldModel, distance_rule: str = "covered") -> EvalResult:
+def evaluate_tables(tables, model: WorldModel, distance_rule: str = DEFAULT_DISTANCE_RULE) -> EvalResult:
     """(crashes, loops, distance) for truth tables (P, 256) (or (256,)): see the module docstring.
-    ``distance_rule``: dist[a], ``ga.motions.DISTANCE_RULES`` ("covered" is the SPEC)."""
+    ``distance_rule``: dist[a], ``ga.motions.DISTANCE_RULES`` ("forward" is the SPEC)."""
     dist = motion_distances(distance_rule)
     tables = np.asarray(tables)
     if tables.ndim == 1:
@@ -189,7 +190,7 @@ def evaluate_tables(tables, model: WorldModel, distance_rule: str = "covered") -
 
 
 def evaluate_population(rows, model: WorldModel, reflex: bool = True,
-                        distance_rule: str = "covered") -> EvalResult:
+                        distance_rule: str = DEFAULT_DISTANCE_RULE) -> EvalResult:
     """(crashes, loops, distance) of every genome of ``rows`` (P, 50) (or one genome (50,)) on
     ``model``; int64 arrays (P,). Bit-exact with :func:`evaluate_python`."""
     rows = validate_rows(rows)

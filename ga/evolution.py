@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ga import operators
-from ga.genome import N_ROWS, ROW_DTYPE, hex_from_rows, rows_from_hex, validate_rows
+from ga.genome import ROW_DTYPE, hex_from_rows, rows_from_hex, validate_rows
 from ga.motions import REFLEX_TABLE
 
 STATE_FORMAT = 1  # bump when the layout of state_dict changes
@@ -51,10 +51,6 @@ class GAConfig:
     # child's motion there (ga.operators.avoid_state_motion). 0 = the plain GA.
     directed_rate: float = 0.0
     directed_literals: int = 6  # literals of the term the directed mutation writes (8: s alone)
-    # After this many generations without a better best fitness, the per-site mutation rates are
-    # multiplied by stagnation_boost until the best improves (0 = never).
-    stagnation_generations: int = 0
-    stagnation_boost: float = 4.0
     literal_p: float = operators.DEFAULT_LITERAL_P  # connected-literal probability of new terms
     off_p: float = operators.DEFAULT_OFF_P  # fraction of off rows in the initial population
 
@@ -74,11 +70,6 @@ class GAConfig:
             value = getattr(self, name)
             if not 0.0 <= value <= 1.0:
                 raise ValueError(f"{name} must be in [0, 1], got {value!r}")
-        if self.stagnation_generations < 0 or self.stagnation_boost <= 0:
-            raise ValueError(
-                f"stagnation_generations must be >= 0 and stagnation_boost > 0, got "
-                f"{self.stagnation_generations!r}, {self.stagnation_boost!r}"
-            )
         if not 1 <= self.directed_literals <= 8:
             raise ValueError(f"directed_literals must be in 1..8, got {self.directed_literals!r}")
 
@@ -107,7 +98,6 @@ class GeneticAlgorithm:
         self.best_rows: np.ndarray | None = None
         self.best_fitness: float = float("-inf")
         self.last_fitness: np.ndarray | None = None
-        self.stalled = 0  # generations since the best fitness last improved
 
     # -- ask / tell --------------------------------------------------------------------------
 
@@ -133,8 +123,6 @@ class GeneticAlgorithm:
             raise ValueError(f"expected {cfg.population} failure states, got {len(failures)!r}")
         pop = self._population
         order = operators.elite(fitness, max(cfg.elitism, 1))
-        improved = self.best_rows is None or fitness[order[0]] > self.best_fitness
-        self.stalled = 0 if improved else self.stalled + 1
         self.best_rows = pop[order[0]].copy()
         self.best_fitness = float(fitness[order[0]])
         self.last_fitness = fitness.copy()
@@ -154,11 +142,9 @@ class GeneticAlgorithm:
         crossed = operators.CROSSOVERS[cfg.crossover](rng, a, b)
         do_cross = rng.random(n) < cfg.crossover_rate
         children = np.where(do_cross[:, None], crossed, a)
-        stuck = cfg.stagnation_generations and getattr(self, "stalled", 0) >= cfg.stagnation_generations
-        k = cfg.stagnation_boost if stuck else 1.0
         children = operators.mutate(
-            rng, children, min(cfg.literal_rate * k, 1.0), min(cfg.output_rate * k, 1.0),
-            min(cfg.switch_rate * k, 1.0), min(cfg.replace_rate * k, 1.0), cfg.literal_p,
+            rng, children, cfg.literal_rate, cfg.output_rate, cfg.switch_rate, cfg.replace_rate,
+            cfg.literal_p,
         )
         if failures is not None and cfg.directed_rate > 0:
             directed = rng.random(n) < cfg.directed_rate
@@ -170,14 +156,6 @@ class GeneticAlgorithm:
                         rng, children[i], int(state), cfg.directed_literals
                     )
         return np.concatenate([elites, children]).astype(ROW_DTYPE)
-
-    def replace(self, index: int, rows) -> None:
-        """Overwrite individual ``index`` of the population that `ask` will return (e.g. with a
-        state-targeted mutant of the best, in the on-line method)."""
-        rows = validate_rows(rows)
-        if rows.shape != (N_ROWS,):
-            raise ValueError(f"expected one genome of shape ({N_ROWS},), got {rows.shape!r}")
-        self._population[index] = rows
 
     # -- checkpoints ---------------------------------------------------------------------------
 
@@ -192,7 +170,6 @@ class GeneticAlgorithm:
             "best_fitness": self.best_fitness if self.best_rows is not None else None,
             "last_fitness": None if self.last_fitness is None else [float(f) for f in self.last_fitness],
             "rng": self.rng.bit_generator.state,
-            "stalled": self.stalled,
         }
 
     @classmethod
@@ -217,5 +194,4 @@ class GeneticAlgorithm:
         ga.best_rows = None if d["best_rows"] is None else rows_from_hex(d["best_rows"])
         ga.best_fitness = float("-inf") if d["best_fitness"] is None else float(d["best_fitness"])
         ga.last_fitness = None if d["last_fitness"] is None else np.array(d["last_fitness"], dtype=float)
-        ga.stalled = int(d.get("stalled", 0))
         return ga

@@ -51,20 +51,21 @@ TURN_DEG = 22.5
 MOTION_TRANSLATION_MM = np.array([STEP_MM, -STEP_MM, 0, 0, STEP_MM, STEP_MM, -STEP_MM, -STEP_MM])
 MOTION_ROTATION_DEG = np.array([0.0, 0.0, TURN_DEG, -TURN_DEG, TURN_DEG, -TURN_DEG, TURN_DEG, -TURN_DEG])
 
-# dist[a] of the model-based fitness (SPEC section 7): distance covered by each motion, integer mm.
+# The distance covered by each motion, integer mm (dist[a] under the "covered" rule, below).
 MOTION_DISTANCE_MM = np.abs(MOTION_TRANSLATION_MM).astype(np.int64)
 MAX_MOTION_DISTANCE_MM = int(MOTION_DISTANCE_MM.max())
 
-# Which motions the fitness's distance term rewards. "covered" is the SPEC's dist[a] (above):
-# every translation, backward ones too. "forward" (NOT the SPEC; docs/online.md, round 5) counts
-# only forward translation, so a backward step covers 0 like a turn: with "covered" the distance
-# term pays a backward-turn 50 mm where a turn in place gets 0, and the looping back-off-and-return
-# it favours is what most on-line interactions were lost to. The maximum (forward, 50 mm) is the
-# same for both, so the fitness keeps its scale.
+# Which motions the fitness's distance term rewards. "forward" is SPEC section 7's dist[a]: the
+# forward translation of the motion, so a backward step covers 0 like a turn. "covered" (the
+# paper's first reading, an option) counts every translation, backward ones too: it pays a
+# backward-turn 50 mm where a turn in place gets 0, and the looping back-off-and-return it
+# favours is what most on-line interactions were lost to (docs/online.md, round 5). The maximum
+# (forward, 50 mm) is the same for both, so the fitness keeps its scale.
 DISTANCE_RULES = ("covered", "forward")
+DEFAULT_DISTANCE_RULE = "forward"
 
 
-def motion_distances(rule: str = "covered") -> np.ndarray:
+def motion_distances(rule: str = DEFAULT_DISTANCE_RULE) -> np.ndarray:
     """dist[a] (int64, (8,), mm) of the model-based fitness under ``rule`` (see DISTANCE_RULES)."""
     if rule == "covered":
         return MOTION_DISTANCE_MM.copy()

@@ -69,8 +69,8 @@ from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
 from ga.genome import N_ROWS, ROW_BITS
-from ga.motions import (MAX_MOTION_DISTANCE_MM, N_INPUTS, N_MOTIONS, N_OUTPUTS, N_STATES,
-                        OBSTACLE_MASK, REFLEX_MOTION, SECTOR_SHIFT, motion_distances)
+from ga.motions import (DEFAULT_DISTANCE_RULE, MAX_MOTION_DISTANCE_MM, N_INPUTS, N_MOTIONS, N_OUTPUTS,
+                        N_STATES, OBSTACLE_MASK, REFLEX_MOTION, SECTOR_SHIFT, motion_distances)
 from hdl.and_or_array import AndOrArray, _check_positive
 from hdl.ports import (COUNT_BITS, DISTANCE_BITS, ENTRY_LAYOUT, AmaranthPins, ModelWriteSignature,
                        RowWriteSignature, write_rows)
@@ -137,7 +137,7 @@ class EvaluatorEHW(wiring.Component):
         |S|.
     """
 
-    def __init__(self, k: int = N_ROWS, double_buffer: bool = True, distance_rule: str = "covered"):
+    def __init__(self, k: int = N_ROWS, double_buffer: bool = True, distance_rule: str = DEFAULT_DISTANCE_RULE):
         self.k = _check_positive("k", k)
         self.distance_rule = distance_rule
         self.distances = motion_distances(distance_rule)  # dist[a]; refuses an unknown rule

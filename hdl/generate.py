@@ -12,6 +12,8 @@ from pathlib import Path
 
 from amaranth.back import verilog
 
+from cosim.runs import atomic_write_text
+
 # (file stem = Verilog module name, "module:factory") -- the factory takes no argument.
 BLOCKS = {
     "and_or_array": "hdl.and_or_array:AndOrArray",
@@ -38,18 +40,31 @@ def write_verilog(name: str, out_dir: Path | str = "build/verilog") -> Path:
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     path = out / f"{name}.v"
-    path.write_text(verilog_text(name))
+    atomic_write_text(path, verilog_text(name))
     return path
 
 
-def main(argv=None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", default="build/verilog", help="output folder (default %(default)s)")
-    parser.add_argument("blocks", nargs="*", default=list(BLOCKS), help="blocks to generate (default: all)")
-    args = parser.parse_args(argv)
+def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
+    parser.add_argument("--out", default="build/verilog", metavar="DIR", help="output folder")
+    parser.add_argument("blocks", nargs="*", default=list(BLOCKS), metavar="BLOCK",
+                        help=f"blocks to generate (default: all of {', '.join(BLOCKS)})")
+    return parser
+
+
+def run_from_args(args) -> int:
+    from cosim.errors import UserError
+
+    unknown = [b for b in args.blocks if b not in BLOCKS]
+    if unknown:
+        raise UserError(f"unknown block(s) {unknown}; known: {', '.join(BLOCKS)}")
     for name in args.blocks:
         print(write_verilog(name, args.out))
+    return 0
 
 
-if __name__ == "__main__":
-    main()
+if __name__ == "__main__":  # ``python -m hdl.generate`` is ``ehw verilog``
+    import sys
+
+    from cosim.cli import main
+
+    raise SystemExit(main(["verilog", *sys.argv[1:]]))

@@ -46,7 +46,7 @@ from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
 from ga.genome import GENOME_BITS, N_ROWS, ROW_BITS
-from ga.motions import N_INPUTS, N_OUTPUTS
+from ga.motions import DEFAULT_DISTANCE_RULE, N_INPUTS, N_OUTPUTS
 from hdl.and_or_array import _check_positive
 from hdl.controller_ehw import ControllerEHW
 from hdl.evaluator_ehw import COUNT_BITS, EvaluatorEHW
@@ -86,7 +86,7 @@ class SystemTop(wiring.Component):
         Results RAM read port (synchronous): a (crashes, loops, distance) word.
     """
 
-    def __init__(self, p_max: int = P_MAX, distance_rule: str = "covered"):
+    def __init__(self, p_max: int = P_MAX, distance_rule: str = DEFAULT_DISTANCE_RULE):
         self.p_max = _check_positive("p_max", p_max)
         self.distance_rule = distance_rule  # dist[a] of the evaluator (ga.motions.DISTANCE_RULES)
         index = max(1, (p_max - 1).bit_length())

@@ -26,10 +26,15 @@ File format::
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+
+import numpy as np
+
+from cosim.errors import UserError
 
 ARENA_DIR = Path(__file__).resolve().parent / "arenas"
 DEFAULT_ARENA = "default"
@@ -39,13 +44,17 @@ N_POSITIONS = 64  # SPEC section 5
 # A relocation pose (and the start) must leave this much free space between the robot's rim and
 # any obstacle or wall, so the robot never starts touching something.
 POSE_CLEARANCE_MM = 25.0
+# The reachability check (every relocation position and the start must reach the ball's target
+# disc through free space): a flood fill over a grid of robot-centre cells this wide.
+REACH_CELL_MM = 20.0  # at least; larger arenas use 1/400 of their side
+MAX_SIZE_MM = 20_000.0  # 20 m: the robot's 5 cm steps make larger arenas meaningless here
 
 
 def _arena_names() -> tuple[str, ...]:
     return tuple(sorted(p.stem for p in ARENA_DIR.glob("*.json")))
 
 
-class ArenaError(ValueError):
+class ArenaError(UserError, ValueError):
     """An arena file that cannot be used; the message names the offending item."""
 
 
@@ -80,6 +89,24 @@ def _polygon_area2(vertices: list[Point]) -> float:
     return sum(a[0] * b[1] - b[0] * a[1] for a, b in _edges(vertices))
 
 
+def _is_simple(vertices: list[Point]) -> bool:
+    """No repeated vertex and no two non-adjacent edges that cross or touch."""
+    n = len(vertices)
+    if len(set(vertices)) < n:
+        return False
+    edges = list(_edges(vertices))
+    for i in range(n):
+        for j in range(i + 2, n):
+            if i == 0 and j == n - 1:
+                continue  # adjacent through the closing edge
+            (a, b), (c, d) = edges[i], edges[j]
+            if _segments_intersect(a, b, c, d) or min(
+                    _point_segment_distance(a, c, d), _point_segment_distance(b, c, d),
+                    _point_segment_distance(c, a, b), _point_segment_distance(d, a, b)) < 1e-9:
+                return False
+    return True
+
+
 def _is_convex(vertices: list[Point]) -> bool:
     n = len(vertices)
     signs = set()
@@ -88,7 +115,15 @@ def _is_convex(vertices: list[Point]) -> bool:
         cross = (b[0] - a[0]) * (c[1] - b[1]) - (b[1] - a[1]) * (c[0] - b[0])
         if abs(cross) > 1e-9:
             signs.add(cross > 0)
-    return len(signs) == 1
+    if len(signs) != 1:
+        return False
+    # Turning one way at every vertex is not enough: a pentagram does so too, going round twice.
+    turning = 0.0
+    for i in range(n):
+        a, b, c = vertices[i], vertices[(i + 1) % n], vertices[(i + 2) % n]
+        turning += math.atan2((b[0] - a[0]) * (c[1] - b[1]) - (b[1] - a[1]) * (c[0] - b[0]),
+                              (b[0] - a[0]) * (c[0] - b[0]) + (b[1] - a[1]) * (c[1] - b[1]))
+    return abs(abs(turning) - 2 * math.pi) < 1e-6
 
 
 def _inside_convex(p: Point, vertices: list[Point]) -> bool:
@@ -256,6 +291,8 @@ def _obstacle(item, index: int) -> Obstacle:
         if not isinstance(raw, list) or len(raw) < 3:
             raise ArenaError(f"{label} polygon needs at least 3 vertices, got {raw!r}")
         verts = [_point(v, f"{label} vertex {i}") for i, v in enumerate(raw)]
+        if not _is_simple(verts):
+            raise ArenaError(f"{label} polygon is not simple (its edges cross, or a vertex repeats): {raw!r}")
         area2 = _polygon_area2(verts)
         if abs(area2) < 1e-6:
             raise ArenaError(f"{label} polygon has no area: {raw!r}")
@@ -294,13 +331,17 @@ def arena_from_dict(data: dict, source: str = "") -> Arena:
             raise ArenaError(f"arena {source or data.get('name', '?')!r} lacks the key {key!r}")
     name = str(data.get("name", Path(source).stem if source else "arena"))
     size = _number(data["size_mm"], "size_mm")
-    if size <= 4 * ROBOT_RADIUS_MM:
-        raise ArenaError(f"size_mm must exceed {4 * ROBOT_RADIUS_MM:g}, got {size!r}")
+    if not 4 * ROBOT_RADIUS_MM < size <= MAX_SIZE_MM:
+        raise ArenaError(f"size_mm must exceed {4 * ROBOT_RADIUS_MM:g} and be at most {MAX_SIZE_MM:g}, got {size!r}")
     ball = _point(data["ball"], "ball")
     ball_radius = _number(data.get("ball_radius_mm", 100.0), "ball_radius_mm")
+    if ball_radius <= 0:
+        raise ArenaError(f"ball_radius_mm must be positive, got {ball_radius!r}")
     target_radius = _number(data["target_radius_mm"], "target_radius_mm")
     if target_radius <= 0:
         raise ArenaError(f"target_radius_mm must be positive, got {target_radius!r}")
+    if target_radius >= size / 2:
+        raise ArenaError(f"target_radius_mm {target_radius:g} covers half the {size:g} mm arena or more")
     if not (0 < ball[0] < size and 0 < ball[1] < size):
         raise ArenaError(f"ball at {ball!r} is outside the {size:g} mm arena")
     if not isinstance(data["obstacles"], list):
@@ -346,7 +387,90 @@ def arena_from_dict(data: dict, source: str = "") -> Arena:
     _check_pose(arena, start, "start")
     for i, pose in enumerate(positions):
         _check_pose(arena, pose, f"position {i}")
+    _check_target(arena)
+    _check_reachable(arena)
     return arena
+
+
+def _check_target(arena: Arena) -> None:
+    """A leg must start outside the target disc, by at least the robot's radius: else the robot
+    "reaches" the ball without moving (a target radius covering the positions makes 64 targets
+    in 64 interactions)."""
+    need = arena.target_radius_mm + ROBOT_RADIUS_MM
+    for what, (x, y, _) in [("start", arena.start)] + [(f"position {i}", p) for i, p in enumerate(arena.positions)]:
+        d = math.dist((x, y), arena.ball)
+        if d < need:
+            raise ArenaError(
+                f"{what} at ({x:g}, {y:g}) is {d:.0f} mm from the ball: within the target radius "
+                f"({arena.target_radius_mm:g} mm) plus the robot's radius ({ROBOT_RADIUS_MM:g} mm), "
+                "so the leg needs no motion")
+
+
+def clearance_grid(arena: Arena, cell: float = REACH_CELL_MM) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(xs, ys, clearance)``: cell centres and, per cell, the distance to the nearest obstacle
+    or wall (0 inside an obstacle), as :meth:`Arena.clearance` but for the whole grid at once."""
+    xs = np.arange(cell / 2, arena.size_mm, cell)
+    gx, gy = np.meshgrid(xs, xs, indexing="ij")
+    clear = np.minimum.reduce([gx, gy, arena.size_mm - gx, arena.size_mm - gy])
+    for ob in arena.obstacles:
+        if ob.is_circle:
+            d = np.maximum(0.0, np.hypot(gx - ob.centre[0], gy - ob.centre[1]) - ob.radius)
+        else:
+            d = np.full(gx.shape, np.inf)
+            inside = np.ones(gx.shape, bool)
+            for (ax, ay), (bx, by) in _edges(list(ob.vertices)):
+                dx, dy = bx - ax, by - ay
+                t = np.clip(((gx - ax) * dx + (gy - ay) * dy) / (dx * dx + dy * dy), 0.0, 1.0)
+                d = np.minimum(d, np.hypot(gx - ax - t * dx, gy - ay - t * dy))
+                inside &= dx * (gy - ay) - dy * (gx - ax) > 0
+            d[inside] = 0.0
+        clear = np.minimum(clear, d)
+    return xs, xs, clear
+
+
+def _flood(free: np.ndarray, seeds: np.ndarray) -> np.ndarray:
+    """4-connected flood fill of ``free`` from ``seeds`` (boolean grids of one shape)."""
+    reached = seeds & free
+    while True:
+        grown = reached.copy()
+        grown[1:, :] |= reached[:-1, :]
+        grown[:-1, :] |= reached[1:, :]
+        grown[:, 1:] |= reached[:, :-1]
+        grown[:, :-1] |= reached[:, 1:]
+        grown &= free
+        if (grown == reached).all():
+            return reached
+        reached = grown
+
+
+@functools.lru_cache(maxsize=16)
+def _reachable_grid(arena: Arena) -> tuple[np.ndarray, np.ndarray]:
+    cell = max(REACH_CELL_MM, arena.size_mm / 400)
+    xs, ys, clear = clearance_grid(arena, cell)
+    # A cell is free when the robot fits there; the slack of most of a cell keeps a gap the
+    # robot just fits through from falling between two grid lines.
+    free = clear >= ROBOT_RADIUS_MM - 0.75 * cell
+    gx, gy = np.meshgrid(xs, ys, indexing="ij")
+    goal = np.hypot(gx - arena.ball[0], gy - arena.ball[1]) <= arena.target_radius_mm
+    if not (goal & free).any():
+        raise ArenaError(
+            f"the ball at ({arena.ball[0]:g}, {arena.ball[1]:g}) cannot be reached: no point within "
+            f"the target radius ({arena.target_radius_mm:g} mm) has room for the "
+            f"{2 * ROBOT_RADIUS_MM:g} mm robot")
+    return xs, _flood(free, goal)
+
+
+def _check_reachable(arena: Arena) -> None:
+    """Every relocation position (and the start) reaches the target disc through free space."""
+    xs, reached = _reachable_grid(arena)
+    cell = xs[1] - xs[0]
+    last = len(xs) - 1
+    for what, (x, y, _) in [("start", arena.start)] + [(f"position {i}", p) for i, p in enumerate(arena.positions)]:
+        i, j = min(last, int(x // cell)), min(last, int(y // cell))
+        if not reached[i, j]:
+            raise ArenaError(
+                f"{what} at ({x:g}, {y:g}) cannot reach the ball: obstacles and walls leave no "
+                f"free path for the {2 * ROBOT_RADIUS_MM:g} mm robot")
 
 
 def load_arena(name_or_path: str | Path = DEFAULT_ARENA) -> Arena:
@@ -357,9 +481,11 @@ def load_arena(name_or_path: str | Path = DEFAULT_ARENA) -> Arena:
     elif not path.exists():
         raise ArenaError(f"no arena {str(name_or_path)!r}: not a file, and not one of {_arena_names()}")
     try:
-        data = json.loads(path.read_text())
-    except json.JSONDecodeError as exc:
-        raise ArenaError(f"arena file {str(path)!r} is not valid JSON: {exc}") from exc
+        data = json.loads(path.read_bytes().decode())
+    except OSError as exc:
+        raise ArenaError(f"cannot read arena file {str(path)!r}: {exc.strerror or exc}") from None
+    except (ValueError, RecursionError) as exc:  # JSONDecodeError, UnicodeDecodeError
+        raise ArenaError(f"arena file {str(path)!r} is not valid JSON: {exc}") from None
     return arena_from_dict(data, source=str(path))
 
 

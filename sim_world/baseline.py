@@ -26,7 +26,6 @@ results/baseline_trajectory.png. ``--tune SECONDS`` continues the search from th
 from __future__ import annotations
 
 import argparse
-import json
 import time
 from pathlib import Path
 
@@ -47,7 +46,7 @@ from ga.motions import (
     Sector,
 )
 from sim_world.arena import N_POSITIONS, load_arena
-from sim_world.course import DEFAULT_MAX_LEG_STEPS, run_course
+from sim_world.course import DEFAULT_MAX_LEG_STEPS, Course, run_course
 from sim_world.world import DEFAULT_NOISE, World
 
 
@@ -167,7 +166,9 @@ def evaluate_legs(table, runs, max_leg_steps: int = DEFAULT_MAX_LEG_STEPS, limit
         arena = arenas.get(name) or arenas.setdefault(name, load_arena(name))
         world = World(arena, noise=noise, seed=seed)
         weight = 1 if noise is not None else NOISE_FREE_WEIGHT
-        for leg in range(-1, N_POSITIONS - 1):
+        course = Course.of(arena)
+        for target in range(course.n_positions):  # the leg after the target-th (0: from the start)
+            leg = course.position_after(target) if target else -1
             reached, n, seen = _run_leg(world, table, leg, max_leg_steps)
             steps += n
             if not reached:
@@ -253,23 +254,28 @@ def _summary(res) -> dict:
     }
 
 
-def main(argv=None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--arena", default="default")
+def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
+    parser.add_argument("--arena", default="default", help="arena name or .json path")
     parser.add_argument("--seeds", type=int, default=5, help="noisy runs (seeds FIRST..FIRST+N-1)")
     parser.add_argument("--first-seed", type=int, default=0, metavar="FIRST",
                         help="first noisy seed (100 and up were never tuned on)")
-    parser.add_argument("--max-leg-steps", type=int, default=DEFAULT_MAX_LEG_STEPS)
-    parser.add_argument("--out", type=Path, default=Path("results"))
+    parser.add_argument("--max-leg-steps", type=int, default=DEFAULT_MAX_LEG_STEPS, help="step limit of one leg")
+    parser.add_argument("--out", type=Path, default=Path("results"), metavar="DIR",
+                        help="folder of baseline.json and baseline_trajectory.png")
     parser.add_argument("--tune", type=float, default=0.0, metavar="SECONDS",
                         help="continue the local search from the shipped table and print the new table")
-    args = parser.parse_args(argv)
+    return parser
+
+
+def run_from_args(args) -> int:
+    from cosim.runs import atomic_write_json
+
     if args.tune:
         table = tune_table(baseline_table(), TUNING_RUNS, args.tune, np.random.default_rng(0), args.max_leg_steps,
                            frozen=FRONT_ONLY_STATES)
         table = revert_to_rules(table, TUNING_RUNS, args.max_leg_steps, frozen=FRONT_ONLY_STATES)
         print("".join(str(int(m)) for m in table))
-        return
+        return 0
     args.out.mkdir(parents=True, exist_ok=True)
     report = {"arena": args.arena, "max_leg_steps": args.max_leg_steps, "noise": DEFAULT_NOISE.__dict__}
     t0 = time.perf_counter()
@@ -285,14 +291,19 @@ def main(argv=None) -> None:
     full = sum(r["targets"] == N_POSITIONS for r in noisy)
     print(f"noisy: {full} of {len(noisy)} runs reach all {N_POSITIONS} targets")
     report["seconds"] = round(time.perf_counter() - t0, 2)
-    (args.out / "baseline.json").write_text(json.dumps(report, indent=2) + "\n")
+    atomic_write_json(args.out / "baseline.json", report, indent=2)
     from sim_world.render import plot_trajectory
 
     png = args.out / "baseline_trajectory.png"
     plot_trajectory(load_arena(args.arena), clean.trajectory, png,
                     title=f"reactive baseline, noise-free: {clean.targets_reached} targets, {clean.steps} interactions")
     print(f"wrote {args.out / 'baseline.json'} and {png}")
+    return 0
 
 
-if __name__ == "__main__":
-    main()
+if __name__ == "__main__":  # ``python -m sim_world.baseline`` is ``ehw baseline``
+    import sys
+
+    from cosim.cli import main
+
+    raise SystemExit(main(["baseline", *sys.argv[1:]]))

@@ -17,6 +17,11 @@
 * ``reset(seed=...)`` seeds the world's noise generator: the same seed and actions give the same
   episode. ``render_mode="rgb_array"`` draws the arena, the robot and its IR rays (matplotlib,
   imported lazily).
+* Gymnasium's conventions: ``step`` before the first ``reset`` raises ``ResetNeeded``; a step
+  after ``terminated`` or ``truncated`` warns once (as Gymnasium's own environments do) and
+  changes nothing (no motion, reward 0, the same flags) until ``reset``; an action must be an
+  integer motion code (``True`` is not one); ``reset(options=...)`` takes ``None`` or an empty
+  dict and rejects any key (it has no options).
 * The reflex (SPEC section 6) is not applied: the agent chooses every motion. Wrap the action with
   ``ga.motions.REFLEX_TABLE`` to learn under the reflex.
 """
@@ -25,7 +30,8 @@ from __future__ import annotations
 
 import gymnasium as gym
 import numpy as np
-from gymnasium import spaces
+from gymnasium import logger, spaces
+from gymnasium.error import ResetNeeded
 
 from ga.motions import N_MOTIONS, N_STATES
 from sim_world.arena import N_POSITIONS, Arena, load_arena
@@ -65,6 +71,9 @@ class EHWTrackingEnv(gym.Env):
         self.observation_space = spaces.Discrete(N_STATES)
         self._targets = 0
         self._leg_steps = 0
+        self._needs_reset = True  # before the first reset
+        self._ended: tuple | None = None  # (obs, terminated, truncated) once the episode ended
+        self._warned_after_end = False
 
     def _info(self) -> dict:
         return {
@@ -76,17 +85,34 @@ class EHWTrackingEnv(gym.Env):
         }
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
+        if options is not None and not isinstance(options, dict):
+            raise TypeError(f"options must be a dict or None, got {type(options).__name__} {options!r}")
+        if options:
+            raise ValueError(f"EHWTrackingEnv.reset takes no options, got {sorted(options)!r}")
         super().reset(seed=seed)
         # The world's noise generator is seeded from the environment's own generator.
         self.world.reset(int(self.np_random.integers(2**63 - 1)))
         state = self.world.reset_to_start()
         self._targets = 0
         self._leg_steps = 0
+        self._needs_reset = False
+        self._ended = None
+        self._warned_after_end = False
         return int(state), self._info()
 
     def step(self, action):
-        if not self.action_space.contains(action):
-            raise ValueError(f"action must be in 0..{N_MOTIONS - 1}, got {action!r}")
+        if isinstance(action, (bool, np.bool_)) or not self.action_space.contains(action):
+            raise ValueError(f"action must be a motion code 0..{N_MOTIONS - 1} (an integer), got {action!r}")
+        if self._needs_reset:
+            raise ResetNeeded("call reset() before step()")
+        if self._ended is not None:
+            if not self._warned_after_end:
+                logger.warn("You are calling 'step()' even though this environment has already returned "
+                            "terminated = True or truncated = True. You should always call 'reset()' "
+                            "once you receive it; this step does nothing.")
+                self._warned_after_end = True
+            obs, terminated, truncated = self._ended
+            return obs, 0.0, terminated, truncated, self._info()
         before = self.world.target_distance()
         out = self.world.step(int(action))
         self._leg_steps += 1
@@ -107,7 +133,10 @@ class EHWTrackingEnv(gym.Env):
         reward -= STEP_COST
         if not terminated and self._leg_steps >= self.max_leg_steps:
             truncated = True
-        return int(self.world.state()), float(reward), terminated, truncated, self._info()
+        obs = int(self.world.state())
+        if terminated or truncated:
+            self._ended = (obs, terminated, truncated)
+        return obs, float(reward), terminated, truncated, self._info()
 
     def render(self):
         if self.render_mode != "rgb_array":

@@ -12,6 +12,7 @@ import argparse
 import math
 from pathlib import Path
 
+from cosim.runs import atomic_savefig
 from sim_world.arena import ARENAS, ROBOT_RADIUS_MM, Arena, load_arena
 
 
@@ -86,7 +87,7 @@ def render_arena(arena: Arena, path, pose=None, title: str | None = None) -> Pat
                  f"robot state {state:08b} (x7..x0)", fontsize=10)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110, bbox_inches="tight")
+    atomic_savefig(fig, path, dpi=110, bbox_inches="tight")
     plt.close(fig)
     return path
 
@@ -128,20 +129,32 @@ def plot_trajectory(arena: Arena, trajectory, path, title: str | None = None, nu
     ax.set_title(title or f"trajectory, {len(trajectory)} poses", fontsize=10)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110, bbox_inches="tight")
+    atomic_savefig(fig, path, dpi=110, bbox_inches="tight")
     plt.close(fig)
     return path
 
 
-def main(argv=None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, default=Path("results"))
-    parser.add_argument("--arena", action="append", help=f"arena(s) to render (default all: {', '.join(ARENAS)})")
-    args = parser.parse_args(argv)
-    for name in args.arena or ARENAS:
-        path = render_arena(load_arena(name), args.out / f"arena_{name}.png")
+def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
+    parser.add_argument("--out", type=Path, default=Path("results"), metavar="DIR", help="folder of the pictures")
+    parser.add_argument("--arena", action="append", metavar="NAME|FILE",
+                        help=f"arena(s) to render, repeatable (default: all of {', '.join(ARENAS)})")
+    return parser
+
+
+def run_from_args(args) -> int:
+    arenas = [load_arena(name) for name in args.arena or ARENAS]  # every file checked first
+    for arena in arenas:
+        # The picture is named after the arena's name, never its path (an absolute path in the
+        # name would make a nested folder under --out).
+        stem = "".join(c if c.isalnum() or c in "-_" else "_" for c in arena.name) or "arena"
+        path = render_arena(arena, Path(args.out) / f"arena_{stem}.png")
         print(f"wrote {path}")
+    return 0
 
 
-if __name__ == "__main__":
-    main()
+if __name__ == "__main__":  # ``python -m sim_world.render`` is ``ehw arena``
+    import sys
+
+    from cosim.cli import main
+
+    raise SystemExit(main(["arena", *sys.argv[1:]]))

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import copy
 import json
+import math
 
 import pytest
 
@@ -122,3 +123,65 @@ def test_bad_json(tmp_path):
     path.write_text("{not json")
     with pytest.raises(ArenaError, match="not valid JSON"):
         load_arena(path)
+
+
+# -- issue 15: arena files that made results meaningless are refused ------------------------------
+
+STAR = [[2000 + 400 * math.cos(math.radians(90 + 144 * k)), 1000 + 400 * math.sin(math.radians(90 + 144 * k))]
+        for k in range(5)]  # a pentagram: turns one way at every vertex, goes round twice
+
+
+def _walled_ball(d: dict, lo=1650, hi=2350) -> dict:
+    """Four bars boxing the ball in (gaps of 60 mm at the corners: too narrow for the robot)."""
+    t = 60  # a box round the ball, walls 60 mm thick
+    bars = [[[lo, lo], [hi, lo], [hi, lo + t], [lo, lo + t]],
+            [[lo, hi - t], [hi, hi - t], [hi, hi], [lo, hi]],
+            [[lo, lo + 2 * t], [lo + t, lo + 2 * t], [lo + t, hi - 2 * t], [lo, hi - 2 * t]],
+            [[hi - t, lo + 2 * t], [hi, lo + 2 * t], [hi, hi - 2 * t], [hi - t, hi - 2 * t]]]
+    return _with(d, obstacles=[{"name": f"bar{i}", "polygon": b} for i, b in enumerate(bars)])
+
+
+@pytest.mark.parametrize(
+    "mutate, message",
+    [
+        (lambda d: _with(d, target_radius_mm=3000), "target_radius_mm 3000 covers half"),
+        (lambda d: _with(d, target_radius_mm=1500), "within the target radius"),  # 64 targets in 64 steps
+        (lambda d: _with(d, ball_radius_mm=-100), "ball_radius_mm must be positive"),
+        (lambda d: _with(d, ball_radius_mm=0), "ball_radius_mm must be positive"),
+        (lambda d: _with(d, size_mm=1e9), "size_mm must exceed"),
+        (lambda d: _with(d, obstacles=[{"name": "bowtie", "polygon": [[1000, 1000], [1400, 1400], [1400, 1000], [1000, 1400]]}]),
+         "'bowtie'"),
+        (lambda d: _with(d, obstacles=[{"name": "star", "polygon": STAR}]), "'star'"),
+        (lambda d: _with(d, obstacles=[{"name": "twice", "polygon": [[1000, 1000], [1400, 1000], [1400, 1400], [1400, 1000]]}]),
+         "not simple"),
+        (_walled_ball, "start at (350, 3650) cannot reach the ball"),
+        (lambda d: _walled_ball(d, 1835, 2165), "the ball at (2000, 2000) cannot be reached"),  # no room
+    ],
+)
+def test_meaningless_arenas_are_refused(empty_data, mutate, message):
+    with pytest.raises(ArenaError) as info:
+        arena_from_dict(mutate(empty_data))
+    assert message in str(info.value)
+
+
+def test_a_position_walled_off_from_the_ball_is_refused(empty_data):
+    # A closed room round position 2 (the one farthest from the others; the ball stays reachable).
+    x, y, _ = empty_data["positions"][2]
+    room = [[[x - 280, y - 280], [x + 280, y - 280], [x + 280, y - 220], [x - 280, y - 220]],
+            [[x - 280, y + 220], [x + 280, y + 220], [x + 280, y + 280], [x - 280, y + 280]],
+            [[x - 280, y - 200], [x - 220, y - 200], [x - 220, y + 200], [x - 280, y + 200]],
+            [[x + 220, y - 200], [x + 280, y - 200], [x + 280, y + 200], [x + 220, y + 200]]]
+    data = _with(empty_data, obstacles=[{"name": f"wall{i}", "polygon": b} for i, b in enumerate(room)])
+    with pytest.raises(ArenaError, match=r"position 2 at \(2550, 1500\) cannot reach the ball"):
+        arena_from_dict(data)
+    # The same room with a door the robot fits through (280 mm) is fine.
+    room[3] = [[x + 220, y - 200], [x + 280, y - 200], [x + 280, y - 60], [x + 220, y - 60]]
+    arena_from_dict(_with(empty_data, obstacles=[{"name": f"wall{i}", "polygon": b} for i, b in enumerate(room)]))
+
+
+def test_the_shipped_arenas_pass_the_reachability_check():
+    from sim_world.arena import _reachable_grid
+
+    for name in ARENAS:
+        xs, reached = _reachable_grid(load_arena(name))
+        assert 0.3 < reached.mean() < 1.0, name  # most of the floor, never the walls' margins

@@ -53,18 +53,19 @@ def test_vectorised_agrees_with_pseudo_code(seed, n_pool, n_obs, p_crash, n_moti
 
 
 def test_forward_distance_rule_pays_only_forward_translation():
-    """dist[a]: the SPEC's "covered" counts every translation; the option "forward" only forward
-    ones (forward, forward-left, forward-right), with the same maximum."""
+    """dist[a]: SPEC section 7's "forward" (the default) counts forward translation only (forward,
+    forward-left, forward-right); the first reading, "covered", every translation, with the same
+    maximum."""
     from ga.motions import motion_distances
 
-    assert motion_distances().tolist() == MOTION_DISTANCE_MM.tolist() == [50, 50, 0, 0, 50, 50, 50, 50]
-    assert motion_distances("forward").tolist() == [50, 0, 0, 0, 50, 50, 0, 0]
+    assert motion_distances().tolist() == motion_distances("forward").tolist() == [50, 0, 0, 0, 50, 50, 0, 0]
+    assert motion_distances("covered").tolist() == MOTION_DISTANCE_MM.tolist() == [50, 50, 0, 0, 50, 50, 50, 50]
     wall = make_state(1 << 3, 1)  # obstacle left, ball left
     model = WorldModel()
     model.observe(wall, Motion.BACKWARD_RIGHT, 0, False)
     back = np.full((1, 256), Motion.BACKWARD_RIGHT, dtype=np.uint8)
-    assert evaluate_tables(back, model).row(0) == (0, 0, 50)
-    assert evaluate_tables(back, model, "forward").row(0) == (0, 0, 0)
+    assert evaluate_tables(back, model, "covered").row(0) == (0, 0, 50)
+    assert evaluate_tables(back, model).row(0) == evaluate_tables(back, model, "forward").row(0) == (0, 0, 0)
     with pytest.raises(ValueError, match="distance rule"):
         motion_distances("backward")
 

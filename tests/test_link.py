@@ -174,18 +174,18 @@ def test_uart_backend_short_run_equals_reference_and_faults(tmp_path, monkeypatc
 
 
 def test_serial_backend_errors_name_the_port(monkeypatch, tmp_path, capsys):
-    from cosim.online import main
+    from cosim.cli import main
 
     monkeypatch.delenv("EHW_PORT", raising=False)
-    assert main(["--backend", "serial", "--out", str(tmp_path), "--no-plots", "--no-progress"]) == 2
+    assert main(["sim", "--backend", "serial", "--out", str(tmp_path / "run"), "--force", "--quiet"]) == 2
     assert "error: the serial backend needs a port" in capsys.readouterr().err
     monkeypatch.setenv("EHW_PORT", str(tmp_path / "ttyNONE"))
-    assert main(["--backend", "serial", "--out", str(tmp_path), "--no-plots", "--no-progress"]) == 2
+    assert main(["sim", "--backend", "serial", "--out", str(tmp_path / "run"), "--force", "--quiet"]) == 2
     err = capsys.readouterr().err
     assert err.startswith("error: ") and "ttyNONE: cannot open the serial port" in err and err.count("\n") == 1
     # a port that answers, but not with this protocol's replies (pyserial's loop:// echoes)
     monkeypatch.setenv("EHW_PORT", "loop://")
-    assert main(["--backend", "serial", "--out", str(tmp_path), "--no-plots", "--no-progress"]) == 2
+    assert main(["sim", "--backend", "serial", "--out", str(tmp_path / "run"), "--force", "--quiet"]) == 2
     err = capsys.readouterr().err
     assert err.startswith("error: loop://: no board answers IDENTIFY") and err.count("\n") == 1, err
 

@@ -5,7 +5,8 @@ import json
 import pytest
 
 from cosim.checkpoint import CheckpointError
-from cosim.offline import default_ga_config, main, run_offline
+from cosim.cli import main as ehw
+from cosim.offline import default_ga_config, run_offline
 
 SMALL = dict(arena="one_obstacle", max_leg_steps=80, n_targets=64, progress=False, plots=False,
              transfer_trials=0, ga_config=default_ga_config(population=8, tournament=3))
@@ -80,7 +81,7 @@ def test_resume_from_a_corrupt_checkpoint_is_refused(tmp_path):
 
 def test_command_line_writes_summary_figures_and_transfer(tmp_path, capsys):
     out = tmp_path / "run"
-    main(["--seed", "4", "--generations-cap", "2", "--arena", "empty", "--max-leg-steps", "60",
+    ehw(["offline", "--seed", "4", "--generations-cap", "2", "--arena", "empty", "--max-leg-steps", "60",
           "--out", str(out), "--quiet"])
     summary = json.loads((out / "summary.json").read_text())
     for key in ("interactions", "generations", "genetic_operations", "world_states", "transitions",
@@ -96,8 +97,7 @@ def test_command_line_writes_summary_figures_and_transfer(tmp_path, capsys):
 def test_evaluator_cache_gives_the_driven_result():
     import numpy as np
 
-    from cosim.offline import Evaluator
-    from ga.model_free import evaluate
+    from cosim.offline import Evaluator, evaluate
     from ga.operators import random_population
     from sim_world.world import World
 

@@ -12,7 +12,10 @@ from cosim.boards import (
     ReferenceEvaluatorBoard,
     make_boards,
 )
-from cosim.online import OnlineConfig, OnlineRun, adaptation_figures, main, make_run
+from cosim.online import OnlineConfig, OnlineRun, make_run
+from cosim.online_config import option
+from cosim.online_cli import build_parser, config_from_args, main
+from cosim.online_report import adaptation_figures, summary_table
 from ga.genome import validate_rows
 from ga.operators import random_population
 from ga.truth_table import truth_tables
@@ -54,25 +57,12 @@ def test_other_seed_gives_another_lifetime():
     assert a.motions != b.motions
 
 
-@pytest.mark.parametrize("options", [{}, {"mark_loops": "self", "escape": True, "targeted": 10,
-                                          "model_update": "most_frequent", "loop_window": 15},
-                                     {"loop_repeats": 4, "loop_reentries": 6, "loop_key": "motion",
-                                      "escape_memory": True, "blame_phase_only": True, "loop_window": 15,
-                                      "loop_still_mm": 40.0, "loop_patience": 2},
-                                     {"loop_repeats": 4, "loop_reentries": 6, "loop_relax": 1,
-                                      "relax_window": True, "escape_spread": "target", "loop_window": 15, "escape_rewrite": 5,
-                                      "loop_radius_mm": 80.0},
-                                     {"loop_repeats": 4, "loop_reentries": 6, "loop_window": 15,
-                                      "escape_credit": True},
-                                     {"loop_window": 15, "loop_penalty": 0.4},
-                                     {"loop_window": 15, "distance_rule": "forward", "loop_cycles": 1,
-                                      "download": "closest"}])
+@pytest.mark.parametrize("options", [{}, {"loop_window": 15, "loop_reentries": 0, "loop_repeats": 6},
+                                     {"loop_window": 15, "distance_rule": "covered", "loop_cycles": 0}])
 def test_resume_equals_uninterrupted(tmp_path, options):
     config = OnlineConfig(seed=5, **{**SMALL, **options})
     whole = make_run(config, out=tmp_path / "whole").run()
     assert len(whole.phases) >= 3, "the test needs a run with several learning phases"
-    if options.get("mark_loops"):  # the replay must also restore the virtual crashes written after loop stops
-        assert any(p.get("marked") for p in whole.phases[2:])
     part = make_run(config, out=tmp_path / "part").run(stop_after_phases=2)
     assert len(part.phases) == 2 and part.targets < config.n_targets
     resumed = make_run(config, out=tmp_path / "part", resume=True)
@@ -172,8 +162,15 @@ def test_unknown_backend_is_refused():
         make_boards("vhdl")
 
 
+def ehw_sim(argv):
+    """``ehw sim ...`` (the on-line command line)."""
+    from cosim.cli import main as ehw
+
+    return ehw(["sim", *argv])
+
+
 def test_command_line_writes_summary_and_plots(tmp_path, capsys):
-    rc = main(["--seed", "2", "--arena", "empty", "--targets", "3", "--population", "20",
+    rc = ehw_sim(["--seed", "2", "--arena", "empty", "--targets", "3", "--population", "20",
                "--generations-per-phase", "2", "--out", str(tmp_path), "--no-progress"])
     assert rc == 0
     summary = json.loads((tmp_path / "summary.json").read_text())
@@ -187,7 +184,7 @@ def test_command_line_writes_summary_and_plots(tmp_path, capsys):
 
 
 def test_continue_past_64_reports_the_64th_target_and_fig11(tmp_path, capsys):
-    rc = main(["--seed", "2", "--arena", "empty", "--population", "20", "--generations-per-phase", "2",
+    rc = ehw_sim(["--seed", "2", "--arena", "empty", "--population", "20", "--generations-per-phase", "2",
                "--continue-past-64", "2", "--out", str(tmp_path), "--no-progress"])
     assert rc == 0
     summary = json.loads((tmp_path / "summary.json").read_text())
@@ -197,3 +194,92 @@ def test_continue_past_64_reports_the_64th_target_and_fig11(tmp_path, capsys):
     assert (tmp_path / "fig11_continued.png").exists()
     out = capsys.readouterr().out
     assert f"{at64['interactions']:,}" in out and "continued to 66 targets" in out
+
+
+def test_distance_rule_reaches_the_evaluator_and_changes_the_lifetime():
+    """dist[a] "forward" (SPEC section 7, the default) or "covered" (the paper's first reading):
+    the same seed gives the same lifetime, the rules different ones, and the table says which."""
+    def lifetime(rule):
+        run = make_run(OnlineConfig(seed=2, **{**SMALL, "distance_rule": rule})).run()
+        assert run.evaluator.distance_rule == rule
+        return run
+
+    a, b, first = lifetime("forward"), lifetime("forward"), lifetime("covered")
+    assert a.motions == b.motions and a.targets == 4
+    assert a.motions != first.motions
+    assert "dist[a] = covered" in summary_table(first.summary())
+    assert "dist[a]" not in summary_table(a.summary())
+
+
+def test_phase_records_name_the_detector_and_the_escape():
+    run = make_run(OnlineConfig(seed=5, **{**SMALL, "loop_window": 15})).run()
+    loops = [p for p in run.phases if p["reason"] == "loop"]
+    assert loops and {p["detector"] for p in loops} <= {"window", "reentries", "repeats", "cycles"}
+    assert all("detector" not in p for p in run.phases if p["reason"] != "loop")
+    for p in run.phases:  # the downloaded controller avoids the blamed motion when escaped
+        if p.get("escaped"):
+            assert p["changed"] and p["new_motion"] != p["motion"]
+
+
+def test_defaults_and_command_line():
+    """SPEC section 7's defaults; ``--distance covered --loop-cycles 0`` is the first reading."""
+    default = config_from_args(build_parser().parse_args([]))
+    assert default == OnlineConfig()
+    options = {a.dest for a in build_parser()._actions}
+    for field in OnlineConfig().to_dict():  # every field has its option (named in the errors)
+        assert option(field).lstrip("-").replace("-", "_") in options | {"targets"}, field
+    assert (default.distance_rule, default.loop_cycles) == ("forward", 1)
+    args = build_parser().parse_args(["--distance", "covered", "--loop-cycles", "0", "--no-escape",
+                                      "--continue-past-64", "3", "--loop-radius-mm", "40"])
+    config = config_from_args(args)
+    assert (config.distance_rule, config.loop_cycles, config.escape, config.n_targets,
+            config.loop_radius_mm) == ("covered", 0, False, 67, 40.0)
+
+
+@pytest.mark.parametrize("field, value, message", [
+    ("loop_window", -3, "--loop-window must be >= 0, got -3"),
+    ("n_targets", 0, "--targets must be >= 1, got 0"),
+    ("population", 2.5, "--population must be an integer, got 2.5"),
+    ("loop_radius_mm", float("nan"), "--loop-radius-mm must be a finite distance >= 0, got nan"),
+    ("literal_rate", 1.5, "--literal-rate must be a rate in [0, 1], got 1.5"),
+    ("distance_rule", "backward", "--distance must be one of covered, forward, got 'backward'"),
+    ("elitism", 600, "--elitism must be in 0..population, got 600"),
+    ("blind_bit", 7, "--blind-bit and --blind-after-target go together"),
+    ("escape", 1, "--escape must be True or False, got 1"),
+])
+def test_config_refuses_bad_values_naming_the_option(field, value, message):
+    with pytest.raises(ValueError) as info:
+        OnlineConfig(**{field: value})
+    assert message in str(info.value)
+    with pytest.raises(ValueError, match="--blind-bit must be an IR bit 0..5, got 7"):
+        OnlineConfig(blind_bit=7, blind_after_target=3)
+
+
+def test_command_line_error_is_one_line_and_status_2(capsys):
+    assert main(["--loop-window", "-3", "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert err == "error: --loop-window must be >= 0, got -3\n"
+
+
+def test_dropped_options_are_gone():
+    help_text = build_parser().format_help()
+    for option in ("--mark-loops", "--targeted", "--download", "--loop-penalty", "--escape-spread",
+                   "--model-update", "--loop-key", "--loop-relax", "--escape-credit", "--blame-phase-only"):
+        assert option not in help_text
+
+
+def test_interaction_breakdown_on_hand_made_records():
+    from cosim.online_report import interaction_breakdown
+
+    phases = [{"interactions": 10, "reason": "crash", "state": 1, "motion": 0},
+              {"interactions": 25, "reason": "loop", "state": 1, "motion": 3},
+              {"interactions": 40, "reason": "loop", "state": 1, "motion": 3}]
+    targets = [{"target": 1, "interactions": 20}, {"target": 2, "interactions": 30}]
+    got = interaction_breakdown(phases, targets, 50, block=1)
+    # failed segments: 0-10, 20-25 (after target 1), 30-40 (after target 2)
+    assert got == {"in_failed_segments": 25, "per_failure": 8.33, "first_leg": 20,
+                   "per_block": [20, 10, 20], "block": 1, "repeated_blames": 1}
+    run = make_run(OnlineConfig(seed=5, **SMALL)).run()
+    where = run.summary()["where_interactions_go"]
+    assert 0 < where["in_failed_segments"] <= run.interactions
+    assert sum(where["per_block"]) == run.interactions

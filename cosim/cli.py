@@ -1,0 +1,279 @@
+"""``ehw``: the project's one command line (a console script, ``pyproject.toml``).
+
+    ehw sim       [--backend reference|amaranth|cocotb] [--seed 1] [--out DIR] [--resume] ...
+    ehw offline   [--seed 1] [--generations-cap G] [--workers W] [--out DIR] [--resume] ...
+    ehw compare   [--seeds 5] [--jobs 2] [--out results] ...   (cosim.compare's own options)
+    ehw verilog   [--out build/verilog] [BLOCK ...]
+    ehw bitstream ...                                        (hdl.fpga, where the checkout has it)
+    ehw bench     [MODULE ...] [--out results/bench.json]
+    ehw arena     [--arena NAME|FILE ...] [--out results]
+    ehw baseline  [--arena default] [--seeds 5] [--out results]
+
+One parser module: each subcommand takes its module's own argument definitions (``add_arguments``
+of ``cosim.offline``, ``sim_world.render``, ...; for ``sim`` those of the on-line experiment),
+plus the flags every run shares, spelled the same everywhere: ``--seed``, ``--out``, ``--resume``,
+``--force``, ``--quiet``, ``--config``. ``--help`` shows every option's default.
+
+- **Where results go** (``cosim.runs``): without ``--out`` each run of ``sim`` / ``offline`` gets a
+  fresh folder ``results/<method>/<date>-<time>-seed<S>/`` and ``results/<method>/latest`` points
+  at it; an ``--out`` that holds a run is refused unless ``--resume`` or ``--force``; a folder in
+  use by another run is refused (a lock); every result file is written atomically.
+- **Config files** (``cosim.config_file``): ``--config run.toml`` sets any run option; flags
+  override it. Each run writes ``config.toml`` beside its summary, which ``--config`` takes back
+  (as it takes the ``summary.json``), so a run is re-run from its results.
+- **Settings that were environment variables** are options now; the variables remain a fallback
+  (option > environment > default): ``--simulator`` (``EHW_SIM``, default verilator, as ``make
+  sim``), ``--hdl-sample`` (``EHW_HDL_SAMPLE``), ``--waves`` (``WAVES``), ``--clock-hz``
+  (``EHW_CLOCK_HZ``). All are checked before any work.
+- **Errors** (``cosim.errors``): a user error is one ``error: ...`` line on stderr and exit
+  status 2; a traceback means a bug.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import importlib.util
+import json
+import math
+import sys
+from pathlib import Path
+from typing import Sequence
+
+from cosim.cli_options import (PROG, RESULTS, HelpFormatter, _add_common, apply_config_file,
+                               resolve_hdl_settings)
+from cosim.config_file import field_types
+from cosim.errors import ArgumentParser, UserError, run_main
+from cosim.run_commands import SIM_DEST_OF, SIM_RUN_OPTIONS, cmd_offline, cmd_sim, offline_parser, sim_parser
+from cosim.runs import RunLock
+
+# -- the other subcommands ------------------------------------------------------------------------
+
+
+def _lock_out(folder: Path):
+    """The lock of an output folder that commands other than sim/offline write into (created,
+    and refused when it is a file or not writable)."""
+    from cosim.runs import RunFolderError
+
+    folder = Path(folder)
+    if folder.exists() and not folder.is_dir():
+        raise UserError(f"--out {str(folder)!r} is a file, not a folder")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        return RunLock(folder).acquire()
+    except OSError as exc:
+        raise RunFolderError(f"cannot write into --out {str(folder)!r}: {exc.strerror or exc}") from None
+
+
+def _compare_parser(p) -> None:
+    p.add_argument("compare_args", nargs=argparse.REMAINDER, metavar="...",
+                   help="cosim.compare's options: see 'ehw compare --help'")
+
+
+def check_compare_inputs(argv: Sequence[str]) -> Path:
+    """What ``cosim.compare`` reads, checked before it runs anything: its --out folder, and with
+    --adaptation-only the compare.json it extends."""
+    pre = argparse.ArgumentParser(add_help=False)
+    pre.add_argument("--out", type=Path, default=Path("results"))
+    pre.add_argument("--adaptation-only", action="store_true")
+    pre.add_argument("--blind-bit", type=int, default=None)
+    pre.add_argument("--blind-after-target", type=int, default=None)
+    pre.add_argument("--seeds", type=int, default=5)
+    pre.add_argument("--jobs", type=int, default=2)
+    known, _ = pre.parse_known_args(list(argv))
+    if known.seeds < 1 or known.jobs < 1:
+        raise UserError(f"--seeds and --jobs must be at least 1, got {known.seeds!r} and {known.jobs!r}")
+    if (known.blind_bit is None) != (known.blind_after_target is None):
+        raise UserError("--blind-bit and --blind-after-target go together")
+    if known.blind_bit is not None and known.blind_bit not in range(6):
+        raise UserError(f"--blind-bit must be an IR bit 0..5, got {known.blind_bit!r}")
+    if known.adaptation_only:
+        if known.blind_bit is None:
+            raise UserError("--adaptation-only needs --blind-bit B and --blind-after-target T")
+        path = known.out / "compare.json"
+        try:
+            report = json.loads(path.read_text())
+        except OSError as exc:
+            raise UserError(f"--adaptation-only extends {str(path)!r}, which cannot be read "
+                            f"({exc.strerror}): run 'ehw compare' first") from None
+        except ValueError as exc:
+            raise UserError(f"--adaptation-only: {str(path)!r} is not valid JSON ({exc})") from None
+        if not isinstance(report, dict) or not isinstance(report.get("per_seed"), dict):
+            raise UserError(f"--adaptation-only: {str(path)!r} is not a compare report (no per_seed)")
+    return known.out
+
+
+def cmd_compare(args, extras: dict, sub=None) -> int:
+    from cosim import compare
+
+    argv = list(args.passed)
+    if any(a in ("-h", "--help") for a in argv):
+        return compare.main(argv) or 0
+    out = check_compare_inputs(argv)
+    with _lock_out(out):
+        try:
+            return compare.main(argv) or 0
+        except SystemExit as exc:  # its own messages for bad options: the one-line form here
+            if isinstance(exc.code, str):
+                raise UserError(exc.code) from None
+            raise
+
+
+def _verilog_parser(p) -> None:
+    from hdl import generate
+
+    generate.add_arguments(p)
+
+
+def cmd_verilog(args, extras: dict, sub=None) -> int:
+    from hdl import generate
+
+    with _lock_out(Path(args.out)):
+        return generate.run_from_args(args) or 0
+
+
+def _bench_parser(p) -> None:
+    import benchmarks.__main__ as bench
+
+    bench.add_arguments(p)
+    _add_common(p, seed=False, resume=False, force=False, quiet=False, config=False)
+
+
+def cmd_bench(args, extras: dict, sub=None) -> int:
+    import benchmarks.__main__ as bench
+
+    resolve_hdl_settings(argparse.Namespace(backend="cocotb"))  # the environment's values checked first
+    with _lock_out(Path(args.out).parent):
+        return bench.run_from_args(args) or 0
+
+
+def _arena_parser(p) -> None:
+    from sim_world import render
+
+    render.add_arguments(p)
+
+
+def cmd_arena(args, extras: dict, sub=None) -> int:
+    from sim_world import render
+    from sim_world.arena import ARENAS, load_arena
+
+    for name in args.arena or ARENAS:  # every file checked before anything is written
+        load_arena(name)
+    with _lock_out(args.out):
+        return render.run_from_args(args) or 0
+
+
+def _baseline_parser(p) -> None:
+    from sim_world import baseline
+
+    baseline.add_arguments(p)
+    _add_common(p, seed=False, resume=False, force=False, quiet=False)
+
+
+def cmd_baseline(args, extras: dict, sub=None) -> int:
+    from sim_world import baseline
+
+    if args.seeds < 0 or args.max_leg_steps < 1 or not (math.isfinite(args.tune) and args.tune >= 0):
+        raise UserError("--seeds must be >= 0, --max-leg-steps >= 1 and --tune a finite number of "
+                        f"seconds >= 0; got {args.seeds!r}, {args.max_leg_steps!r}, {args.tune!r}")
+    from sim_world.arena import load_arena
+
+    load_arena(args.arena)
+    with _lock_out(args.out):
+        return baseline.run_from_args(args) or 0
+
+
+# Subcommands whose module comes from other work: listed only where the checkout has the module
+# (``formal`` joins here once its module is on main: one line).
+EXTERNAL = {"bitstream": ("hdl.fpga", "FPGA bitstreams of the EHW boards (hdl.fpga)")}
+
+
+def _external_parser(p) -> None:
+    p.add_argument("module_args", nargs=argparse.REMAINDER, metavar="...",
+                   help="the module's own options: see 'ehw <command> --help'")
+
+
+def _cmd_external(module_name: str):
+    def run(args, extras: dict, sub=None) -> int:
+        module = importlib.import_module(module_name)
+        return module.main(list(args.passed)) or 0
+    return run
+
+
+PASS_THROUGH = ("compare", *EXTERNAL)
+COMMANDS = {
+    "sim": (sim_parser, cmd_sim, "the on-line model-based experiment: one robot lifetime (paper 5.2)"),
+    "offline": (offline_parser, cmd_offline, "the off-line model-free experiment (paper 5.1)"),
+    "compare": (_compare_parser, cmd_compare, "both methods and the baseline over N seeds -> compare.md"),
+    "verilog": (_verilog_parser, cmd_verilog, "the Verilog of the EHW blocks -> build/verilog/"),
+    "bench": (_bench_parser, cmd_bench, "speed figures -> results/bench.json"),
+    "arena": (_arena_parser, cmd_arena, "render arenas -> results/arena_<name>.png"),
+    "baseline": (_baseline_parser, cmd_baseline, "the hand-written reactive baseline through the 64 legs"),
+}
+_SUBPARSERS: dict[str, argparse.ArgumentParser] = {}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = ArgumentParser(prog=PROG, description="The evolvable-hardware robot (Keymeulen et al. 1998): experiments, Verilog, benchmarks.",
+                            formatter_class=HelpFormatter,
+                            epilog="Each command's options: ehw COMMAND --help. Results: results/ "
+                                   "(README: 'Running it').")
+    subs = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=ArgumentParser)
+    commands = dict(COMMANDS)
+    for name, (module, text) in EXTERNAL.items():
+        if importlib.util.find_spec(module) is not None:
+            commands[name] = (_external_parser, _cmd_external(module), text)
+    for name, (add, _, text) in commands.items():
+        sub = subs.add_parser(name, help=text, description=text, formatter_class=HelpFormatter,
+                              conflict_handler="resolve")
+        add(sub)
+        _SUBPARSERS[name] = sub
+    parser.set_defaults(_commands=commands)
+    return parser
+
+
+def _main(argv: Sequence[str] | None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser()
+    commands = parser.get_default("_commands")
+    if argv and argv[0] in PASS_THROUGH and argv[0] in commands:
+        # The module parses its own options (argparse cannot hand on "--x ..." as a remainder).
+        return commands[argv[0]][1](argparse.Namespace(passed=argv[1:]), {})
+    args = parser.parse_args(argv)
+    if args.command is None:
+        parser.print_help(sys.stderr)
+        return 2
+    extras = {}
+    if args.command == "offline" and args.resume and args.config is None:
+        # A resumed run keeps its options: the run folder's config.toml, flags over it (the
+        # checkpoint then refuses a flag that changes the run, naming the key).
+        from cosim.runs import read_latest
+
+        folder = args.out if args.out is not None else read_latest(RESULTS / "model_free")
+        if folder is not None and (Path(folder) / "config.toml").is_file():
+            args.config = Path(folder) / "config.toml"
+            argv = [*argv, "--config", str(args.config)]
+    if getattr(args, "config", None) is not None:
+        sub = _SUBPARSERS[args.command]
+        if args.command == "sim":
+            from cosim.online import OnlineConfig
+
+            extras = apply_config_file(sub, args.config, {**field_types(OnlineConfig), **SIM_RUN_OPTIONS},
+                                       SIM_DEST_OF)
+        else:
+            extras = apply_config_file(sub, args.config)
+        args = parser.parse_args(argv)  # flags override the file
+    return args._commands[args.command][1](args, extras, _SUBPARSERS[args.command])
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``ehw ...``: the exit status (2 and one ``error:`` line for a user error)."""
+    return run_main(_main, argv)
+
+
+def entry() -> None:  # the console script
+    raise SystemExit(main())
+
+
+if __name__ == "__main__":
+    entry()

@@ -1,0 +1,313 @@
+"""Run folders that never lose or mix results, and atomic result files.
+
+- **A fresh folder per run.** Without ``--out`` a run writes ``<root>/<date>-<time>-seed<S>/``
+  (``root``: e.g. ``results/model_based``) and points ``<root>/latest`` at it (a relative symlink
+  swapped in atomically; a one-line text file naming the folder where symlinks fail). Two runs
+  in a row keep both.
+- **An explicit ``--out DIR``** that already holds a run (a summary or a checkpoint) is refused
+  unless ``resume`` (continue that run: its checkpoint must exist) or ``force`` (the earlier
+  run's result files are deleted first, so none of them is left beside the new ones).
+- **A lock.** ``DIR/.lock`` is held with ``flock`` for the whole run: a second run on the folder is
+  refused, naming the folder and the process that holds it. The kernel drops the lock when that
+  process ends, however it ends (``kill -9`` too), so a stale lock is simply taken over.
+- **Atomic writes.** :func:`atomic_write_text` / :func:`atomic_savefig` write a temporary file in
+  the same folder, fsync it and ``os.replace`` it in: a run killed mid-write leaves the previous
+  file whole, never a truncated one.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import fcntl
+import json
+import os
+import shutil
+import socket
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from cosim.errors import UserError
+
+LOCK_NAME = ".lock"
+LATEST = "latest"
+# What marks a folder as holding a run, and the files a run writes (deleted by --force and, when
+# a run does not write them again, after it: no earlier run's plot stays beside a new summary).
+RUN_MARKERS = ("summary.json", "checkpoint.json")
+RESULT_SUFFIXES = (".json", ".png", ".md", ".toml", ".csv", ".txt", ".vcd", ".tmp")
+
+
+class RunFolderError(UserError):
+    """An output folder that cannot be used for this run."""
+
+
+# -- atomic files ------------------------------------------------------------------------------
+
+
+def atomic_write_bytes(path, data: bytes) -> Path:
+    """Write ``data`` to ``path`` atomically (temp file in the same folder, fsync, os.replace)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+            f.flush()
+            os.fsync(f.fileno())
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def atomic_write_text(path, text: str) -> Path:
+    return atomic_write_bytes(path, text.encode())
+
+
+def atomic_write_json(path, data, indent: int | None = 1) -> Path:
+    """JSON (NaN and infinities refused: they are not JSON) written atomically."""
+    return atomic_write_text(path, json.dumps(data, indent=indent, allow_nan=False) + "\n")
+
+
+def atomic_savefig(fig, path, **kwargs) -> Path:
+    """``fig.savefig(path, **kwargs)`` atomically (the format comes from the suffix of ``path``)."""
+    import io
+
+    path = Path(path)
+    buffer = io.BytesIO()
+    kwargs.setdefault("format", path.suffix.lstrip(".") or "png")
+    fig.savefig(buffer, **kwargs)
+    return atomic_write_bytes(path, buffer.getvalue())
+
+
+# -- the lock ------------------------------------------------------------------------------------
+
+
+def _lock_holder(path: Path) -> str:
+    try:
+        info = json.loads(path.read_text() or "{}")
+    except (OSError, ValueError):
+        return "another process"
+    pid, host = info.get("pid"), info.get("host")
+    command = info.get("command", "")
+    where = "" if host in (None, socket.gethostname()) else f" on {host}"
+    return f"process {pid}{where} ({command}, since {info.get('started', '?')})"
+
+
+class RunLock:
+    """An exclusive ``flock`` on ``folder/.lock``; refused with a :class:`RunFolderError` that
+    names the folder and the holder while another process holds it."""
+
+    def __init__(self, folder: Path):
+        self.folder = Path(folder)
+        self.path = self.folder / LOCK_NAME
+        self._fd: int | None = None
+
+    def acquire(self) -> "RunLock":
+        fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            os.close(fd)
+            raise RunFolderError(
+                f"run folder {str(self.folder)!r} is in use by {_lock_holder(self.path)}; wait for "
+                "it to end or choose another --out") from None
+        # Ours now (a dead holder's lock is released by the kernel): say who holds it.
+        info = {"pid": os.getpid(), "host": socket.gethostname(),
+                "command": " ".join([Path(sys.argv[0]).name, *sys.argv[1:]])[:200],
+                "started": _dt.datetime.now().isoformat(timespec="seconds")}
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, (json.dumps(info) + "\n").encode(), 0)
+        self._fd = fd
+        return self
+
+    def release(self) -> None:
+        # The file stays: unlinking a lock file another process has opened would let two
+        # processes hold "the" lock on two different files.
+        if self._fd is not None:
+            fcntl.flock(self._fd, fcntl.LOCK_UN)
+            os.close(self._fd)
+            self._fd = None
+
+    def __enter__(self):
+        return self.acquire() if self._fd is None else self
+
+    def __exit__(self, *exc):
+        self.release()
+
+
+# -- run folders ---------------------------------------------------------------------------------
+
+
+def result_files(folder: Path) -> list[Path]:
+    """The files of a run in ``folder`` (recursively), by suffix; the lock is not one."""
+    return sorted(p for p in Path(folder).rglob("*")
+                  if p.is_file() and p.suffix in RESULT_SUFFIXES and p.name != LOCK_NAME)
+
+
+def _holds_run(folder: Path) -> list[str]:
+    return [name for name in RUN_MARKERS if (folder / name).exists()]
+
+
+def read_latest(root: Path) -> Path | None:
+    """The folder ``root/latest`` points at (symlink or text file), or None."""
+    pointer = Path(root) / LATEST
+    if pointer.is_symlink():
+        target = pointer.resolve()
+        return target if target.is_dir() else None
+    if pointer.is_file():
+        name = pointer.read_text().strip()
+        target = Path(root) / name
+        return target if name and target.is_dir() else None
+    return None
+
+
+def write_latest(root: Path, folder: Path) -> Path:
+    """Point ``root/latest`` at ``folder`` atomically: a relative symlink, else a text file."""
+    root = Path(root)
+    pointer = root / LATEST
+    name = os.path.relpath(Path(folder).resolve(), root.resolve())
+    tmp = root / f".{LATEST}.{os.getpid()}.tmp"
+    tmp.unlink(missing_ok=True)
+    try:
+        os.symlink(name, tmp, target_is_directory=True)
+    except (OSError, NotImplementedError):
+        atomic_write_text(pointer, name + "\n")
+        return pointer
+    if pointer.is_dir() and not pointer.is_symlink():  # an old real folder called "latest"
+        tmp.unlink()
+        raise RunFolderError(f"{str(pointer)!r} is a folder, not a pointer: rename it")
+    os.replace(tmp, pointer)
+    return pointer
+
+
+def _fresh_folder(root: Path, seed: int | None) -> Path:
+    stamp = _dt.datetime.now().strftime("%Y%m%d-%H%M%S")
+    base = stamp + ("" if seed is None else f"-seed{seed}")
+    for n in range(1, 1000):
+        folder = root / (base if n == 1 else f"{base}-{n}")
+        try:
+            folder.mkdir(parents=True)  # the atomic claim: two runs never share a folder
+            return folder
+        except FileExistsError:
+            continue
+    raise RunFolderError(f"cannot make a fresh run folder under {str(root)!r}")
+
+
+def _check_writable(folder: Path, what: str) -> None:
+    if folder.exists() and not folder.is_dir():
+        raise RunFolderError(f"{what} {str(folder)!r} is a file, not a folder")
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise RunFolderError(f"cannot create {what} {str(folder)!r}: {exc.strerror}") from None
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise RunFolderError(f"{what} {str(folder)!r} is not writable")
+
+
+class RunFolder:
+    """The folder of one run, locked while in use: ``with open_run(...) as run_dir: ...``."""
+
+    def __init__(self, path: Path, lock: RunLock, fresh: bool, resumed: bool,
+                 root: Path | None = None, previous: Path | None = None):
+        self.path = Path(path)
+        self.lock = lock
+        self.fresh = fresh
+        self.resumed = resumed
+        self.started_ns = time.time_ns()
+        self._root, self._previous = root, previous  # where `latest` pointed before
+
+    def __enter__(self) -> "RunFolder":
+        return self
+
+    def __exit__(self, exc_type, exc, tb):
+        try:
+            if exc_type is not None and self.fresh and not (self.path / "checkpoint.json").exists():
+                # A fresh run that failed before its first checkpoint leaves nothing to resume:
+                # no half-made folder, and `latest` points where it did.
+                shutil.rmtree(self.path, ignore_errors=True)
+                if self._root is not None:
+                    if self._previous is not None:
+                        write_latest(self._root, self._previous)
+                    else:
+                        (self._root / LATEST).unlink(missing_ok=True)
+        finally:
+            self.lock.release()
+
+    def close(self) -> None:
+        self.lock.release()
+
+    def remove_stale(self, written=(), keep=("checkpoint.json", "config.toml", "sessions.json")) -> list[Path]:
+        """Delete the result files of an earlier session that this one did not write again: a
+        file older than this session's start, not in ``written`` and not named in ``keep`` (e.g.
+        a plot when this session made none). Files this session wrote (or a process it started,
+        such as the cocotb simulator) are newer and stay."""
+        written = {Path(p).resolve() for p in written}
+        removed = []
+        for p in result_files(self.path):
+            if p.resolve() in written or p.name in keep or p.stat().st_mtime_ns >= self.started_ns:
+                continue
+            p.unlink(missing_ok=True)
+            removed.append(p)
+        return removed
+
+
+def open_run(out, root, seed: int | None = None, *, resume: bool = False, force: bool = False,
+             checkpoint: str | None = "checkpoint.json") -> RunFolder:
+    """The locked folder of a run (see the module docstring).
+
+    ``out``: the ``--out`` folder or None (a fresh folder under ``root``, or with ``resume`` the
+    one ``root/latest`` points at). ``checkpoint``: the file a resume needs (None: the command
+    has no checkpoints and cannot resume).
+    """
+    if resume and force:
+        raise RunFolderError("--resume and --force exclude each other: resume a run, or replace it")
+    if resume and checkpoint is None:
+        raise RunFolderError("--resume: this command keeps no checkpoint, there is nothing to resume")
+    root = Path(root)
+    fresh = False
+    previous = read_latest(root)
+    if out is None:
+        if resume:
+            folder = read_latest(root)
+            if folder is None:
+                raise RunFolderError(f"--resume without --out continues {str(root / LATEST)!r}, "
+                                     "which points at no run folder; give --out DIR")
+        else:
+            _check_writable(root, "results folder")
+            folder, fresh = _fresh_folder(root, seed), True
+    else:
+        folder = Path(out)
+        if resume and not folder.is_dir():
+            raise RunFolderError(f"--resume: {str(folder)!r} is not a run folder")
+        _check_writable(folder, "output folder --out")
+    lock = RunLock(folder).acquire()
+    try:
+        held = _holds_run(folder)
+        if resume:
+            if not (folder / checkpoint).is_file():
+                raise RunFolderError(f"--resume: {str(folder)!r} holds no {checkpoint} to resume from")
+        elif held and not force:
+            raise RunFolderError(
+                f"--out {str(folder)!r} already holds a run ({', '.join(held)}): give --resume to "
+                "continue it, --force to replace it, or another --out (without --out every run "
+                "gets a fresh folder)")
+        elif force:
+            for p in result_files(folder):
+                p.unlink(missing_ok=True)
+            for d in sorted((p for p in folder.rglob("*") if p.is_dir()), reverse=True):
+                try:
+                    d.rmdir()  # emptied sub-folders of the earlier run
+                except OSError:
+                    pass
+        if fresh or out is None:
+            write_latest(root, folder)
+    except BaseException:
+        lock.release()
+        if fresh:
+            shutil.rmtree(folder, ignore_errors=True)
+        raise
+    return RunFolder(folder, lock, fresh=fresh, resumed=resume, root=root, previous=previous)

@@ -1,0 +1,95 @@
+"""The committed experiment scripts (experiments/) run, on a smoke budget."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+from pathlib import Path
+
+EXPERIMENTS = Path(__file__).resolve().parent.parent / "experiments"
+
+
+def _script(name: str):
+    spec = importlib.util.spec_from_file_location(name, EXPERIMENTS / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_online_table_writes_the_table_and_reuses_finished_runs(tmp_path, capsys):
+    table = _script("online_table")
+    out = tmp_path / "round5.jsonl"
+    argv = ["round5", "--seeds", "1,2", "--budget", "60", "--rows", "the default now", "--out", str(out)]
+    assert table.main(argv) == 0
+    runs = [json.loads(line) for line in out.read_text().splitlines()]
+    assert [r["seed"] for r in runs] == [1, 2]
+    assert all(r["targets"] < 64 and r["interactions"] in (60, 61) for r in runs)  # the budget (a target may add one)
+    assert sum(runs[0]["stops"].values()) == sum(runs[0]["phase_reasons"].values())
+    text = (tmp_path / "round5.md").read_text()
+    assert "Command: `python experiments/online_table.py round5 --seeds 1,2 --budget 60" in text
+    assert "| --distance forward --loop-cycles 1 (the default now) | **" in text
+    assert table.main(argv) == 0  # the second time every run is found in the JSON lines
+    assert len(out.read_text().splitlines()) == 2
+    assert "0 lifetimes to run, 2 in" in capsys.readouterr().err
+
+
+def test_online_table_lists_the_dropped_rows_with_their_commit(tmp_path):
+    table = _script("online_table")
+    assert table.main(["round5", "--seeds", "1", "--budget", "100", "--rows", "closest",
+                       "--out", str(tmp_path / "t.jsonl")]) == 0
+    assert f"(options dropped: run at commit {table.DROPPED_AT})" in (tmp_path / "t.md").read_text()
+    assert not (tmp_path / "t.jsonl").read_text()
+    for name, (_title, _seeds, _budget, rows) in table.TABLES.items():
+        for label, options in rows:
+            assert set(options) <= table.known_fields() | table.DROPPED, (name, label)
+
+
+def test_same_lifetime_compares_field_by_field(tmp_path, capsys):
+    same = _script("same_lifetime")
+    a = {"interactions": 5, "wall_time_s": 1.0, "config": {"seed": 1, "download": "first"},
+         "phases": [{"reason": "loop"}], "hardware": {"reference_evaluator_time_s": 2.0}}
+    b = {"interactions": 5, "wall_time_s": 9.0, "config": {"seed": 1},
+         "phases": [{"reason": "loop"}], "hardware": {"reference_evaluator_time_s": 3.0}}
+    (tmp_path / "a.json").write_text(json.dumps(a))
+    (tmp_path / "b.json").write_text(json.dumps(b))
+    assert same.main([str(tmp_path / "a.json"), str(tmp_path / "b.json")]) == 0
+    b["phases"][0]["reason"] = "crash"
+    (tmp_path / "b.json").write_text(json.dumps(b))
+    assert same.main([str(tmp_path / "a.json"), str(tmp_path / "b.json")]) == 1
+    assert "phases[0].reason: 'loop' vs 'crash'" in capsys.readouterr().out
+
+
+def test_online_round6_runs_each_variant_and_tabulates(tmp_path, capsys):
+    """Each round-6 variant runs a smoke lifetime; the default variant is the plain lifetime."""
+    round6 = _script("online_round6")
+    out = tmp_path / "r6.jsonl"
+    for variant in round6.VARIANTS:
+        assert round6.main([variant, "1", "--budget", "120", "--out", str(out)]) == 0
+    runs = [json.loads(line) for line in out.read_text().splitlines()]
+    assert [r["variant"] for r in runs] == list(round6.VARIANTS)
+    assert all(r["interactions"] in (120, 121) and 0 < r["lost"] <= r["interactions"] for r in runs)
+    from cosim.online import OnlineConfig, make_run
+
+    plain = make_run(OnlineConfig(seed=1, max_interactions=120)).run()
+    assert runs[0]["interactions"] == plain.interactions and runs[0]["phases"] == len(plain.phases)
+    assert round6.main([round6.VARIANTS[0], "1", "--budget", "120", "--out", str(out)]) == 0  # reused
+    assert len(out.read_text().splitlines()) == len(round6.VARIANTS)
+    capsys.readouterr()
+    assert round6.main(["--table", str(out)]) == 0
+    assert "| cyclemem_leg | 1: **" in capsys.readouterr().out
+
+
+def test_online_where_accounts_for_every_interaction(capsys):
+    where = _script("online_where")
+    assert where.main(["--seed", "1", "--budget", "300"]) == 0
+    got = json.loads(capsys.readouterr().out)
+    go = got["where_interactions_go"]
+    assert got["interactions"] in (300, 301) and sum(go["per_block"]) == got["interactions"]
+    # every interaction is in a failed segment or in a leg's rest after its last failure, or after
+    # the last failure of the unfinished leg
+    assert go["in_failed_segments"] + got["clean"] <= got["interactions"]
+    assert got["loops"]["stops"] >= got["loops"]["again_in_lifetime"] >= got["loops"]["again_on_leg"]
+    assert got["states"]["met"] >= got["states"]["at_most_5"] >= got["states"]["at_most_2"] > 0
+    # 1 -7-> 64 -2-> 0 -0-> 1: the loop is its obstacle pair; the free-space pairs are the reflex's
+    assert where.last_cycle([(0, 0), (1, 7), (64, 2), (0, 0)], 1) == ((1, 7),)
+    assert where.last_cycle([(0, 0), (64, 2)], 64) == ()
