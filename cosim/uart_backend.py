@@ -309,7 +309,7 @@ def write_link_verilog(out_dir: Path, *, baud: float, p_max: int | None = None,
     ``baud`` (build id 0: the simulated top does not depend on the commit)."""
     from amaranth.back import verilog
 
-    from cosim.cocotb_backend import icarus_time_zero_fix
+    from cosim.cocotb_run import icarus_time_zero_fix
     from hdl.link import SystemLinkTop
 
     out_dir.mkdir(parents=True, exist_ok=True)
