@@ -27,6 +27,7 @@ import numpy as np
 
 from cosim.boards import EvalCounts, ReferenceControllerBoard, ReferenceEvaluatorBoard, register_backend
 from cosim.link_host import RETRIES, LinkClient, LinkError, NotLoaded
+from ga.motions import DEFAULT_DISTANCE_RULE
 from hdl.link import Design
 from hdl.uart import DEFAULT_BAUD
 
@@ -78,7 +79,7 @@ class LinkEvaluatorBoard:
     """EvaluatorBoard over a ``LinkClient`` (an evaluator or system board with ``p_max`` slots)."""
 
     def __init__(self, client: LinkClient, p_max: int, reflex: bool = True, check: bool = True,
-                 distance_rule: str = "covered", retries: int = RETRIES):
+                 distance_rule: str = DEFAULT_DISTANCE_RULE, retries: int = RETRIES):
         from ga.world_model import WorldModel
 
         if p_max < 1:
@@ -142,7 +143,7 @@ class LinkEvaluatorBoard:
         return result
 
 
-def boards_over(clients, reflex: bool = True, check: bool = True, distance_rule: str = "covered"):
+def boards_over(clients, reflex: bool = True, check: bool = True, distance_rule: str = DEFAULT_DISTANCE_RULE):
     """(controller board, evaluator board) over one client (an ``ehw-system`` board) or two
     (``ehw-controller``, ``ehw-evaluator``); checks each board's design first."""
     if len(clients) == 1:
@@ -188,7 +189,7 @@ def _baud_from_env() -> float:
     return baud
 
 
-def make_serial_boards(reflex: bool = True, distance_rule: str = "covered", check: bool = True,
+def make_serial_boards(reflex: bool = True, distance_rule: str = DEFAULT_DISTANCE_RULE, check: bool = True,
                        port: str | None = None, port2: str | None = None, baud: float | None = None):
     """The boards on serial ports (default ``EHW_PORT``, ``EHW_PORT2``, ``EHW_BAUD``)."""
     port = port or os.environ.get(PORT_ENV)

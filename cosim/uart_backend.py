@@ -28,6 +28,7 @@ from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
 from cosim.boards import register_backend
+from ga.motions import DEFAULT_DISTANCE_RULE
 
 TOPLEVEL = "system_link_top"
 SIM_CLK_HZ = 25_000_000  # the ULX3S's oscillator; a whole number of ns a period (40)
@@ -224,7 +225,7 @@ class HarnessSerial:
     reset_input_buffer = SimulatedSerial.reset_input_buffer
 
 
-def make_uart_boards(reflex: bool = True, distance_rule: str = "covered", check: bool = True):
+def make_uart_boards(reflex: bool = True, distance_rule: str = DEFAULT_DISTANCE_RULE, check: bool = True):
     """The board pair over the running test's simulated line (inside the simulator only)."""
     from cosim.link_boards import boards_over
     from cosim.link_host import LinkClient
@@ -304,7 +305,7 @@ if cocotb is not None:
 
 
 def write_link_verilog(out_dir: Path, *, baud: float, p_max: int | None = None,
-                       distance_rule: str = "covered") -> Path:
+                       distance_rule: str = DEFAULT_DISTANCE_RULE) -> Path:
     """``system_link_top.v``: :class:`LinkHarness` around SystemLinkTop at ``SIM_CLK_HZ`` and
     ``baud`` (build id 0: the simulated top does not depend on the commit)."""
     from amaranth.back import verilog

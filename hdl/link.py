@@ -45,7 +45,7 @@ from amaranth.lib import stream
 from amaranth.lib.wiring import In, Out
 
 from ga.genome import GENOME_BITS, N_ROWS, ROW_BITS
-from ga.motions import N_INPUTS, N_OUTPUTS
+from ga.motions import DEFAULT_DISTANCE_RULE, N_INPUTS, N_OUTPUTS
 from hdl.controller_ehw import ControllerEHW
 from hdl.evaluator_ehw import EvaluatorEHW
 from hdl.ports import RESULT_LAYOUT, RowWriteSignature
@@ -689,7 +689,7 @@ class EvaluatorLinkTop(_LinkTop):
     P_MAX = 1
 
     def __init__(self, clk_freq_hz: float, baud: float = DEFAULT_BAUD, *, double_buffer: bool = True,
-                 distance_rule: str = "covered", **kwargs):
+                 distance_rule: str = DEFAULT_DISTANCE_RULE, **kwargs):
         self.double_buffer = bool(double_buffer)
         self.distance_rule = distance_rule
         super().__init__(clk_freq_hz, baud, double_buffer=self.double_buffer,
@@ -752,7 +752,7 @@ class SystemLinkTop(_LinkTop):
     DESIGN = Design.SYSTEM
 
     def __init__(self, clk_freq_hz: float, baud: float = DEFAULT_BAUD, *, p_max: int | None = None,
-                 distance_rule: str = "covered", **kwargs):
+                 distance_rule: str = DEFAULT_DISTANCE_RULE, **kwargs):
         from hdl.system_top import P_MAX
 
         self.P_MAX = P_MAX if p_max is None else int(p_max)

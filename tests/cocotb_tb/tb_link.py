@@ -19,6 +19,7 @@ the same simulation build).
 
 from __future__ import annotations
 
+import json
 import os
 import sys
 from pathlib import Path
@@ -30,11 +31,14 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # tests/, for l
 
 from cosim.link_boards import LinkControllerBoard, LinkEvaluatorBoard  # noqa: E402
 from cosim.link_host import RETRIES, LinkClient, LinkError, pack  # noqa: E402
-from cosim.uart_backend import SIM_CLK_HZ, host_timeout_s, start_top  # noqa: E402
+from cosim.uart_backend import CONFIG_ENV, SIM_CLK_HZ, host_timeout_s, start_top  # noqa: E402
+from ga.motions import DEFAULT_DISTANCE_RULE  # noqa: E402
 from hdl.link import LINK_CRC, SYNC, FrameHeader  # noqa: E402
 from link_sim import FaultyStream  # noqa: E402
 
 BAUD = float(os.environ.get("EHW_BAUD", SIM_CLK_HZ / 4))
+# the build's dist[a] rule: the short on-line run's, when this runs beside it
+RULE = json.loads(os.environ.get(CONFIG_ENV, "{}")).get("distance_rule", DEFAULT_DISTANCE_RULE)
 P_MAX = int(os.environ.get("EHW_SYSTEM_P_MAX", "8"))
 
 
@@ -45,7 +49,7 @@ async def _line(dut):
 def _session(client: LinkClient, rng) -> None:
     """Controller and evaluator commands, every result checked against the reference."""
     controller = LinkControllerBoard(client, reflex=True, check=True)
-    evaluator = LinkEvaluatorBoard(client, P_MAX, reflex=True, check=True)
+    evaluator = LinkEvaluatorBoard(client, P_MAX, reflex=True, check=True, distance_rule=RULE)
     controller.load(rng.integers(0, 1 << 19, 50, dtype=np.uint32))
     for state in rng.integers(0, 256, 6):
         controller.motion(int(state))
