@@ -25,6 +25,12 @@ SEED   ?= 1
 SEEDS  ?= 5
 JOBS   ?= 2
 ARGS   ?=
+# BACKEND=serial: the boards' serial ports (PORT: a ULX3S system board, or with PORT2 the
+# controller and evaluator iCEBreakers) and the baud (default 115200; BACKEND=uart: the fastest
+# the simulated clock allows).
+PORT   ?=
+PORT2  ?=
+BAUD   ?=
 
 .PHONY: all test test-fast sim offline compare rl verilog bench arena baseline hdl-tools venv clean distclean help
 
@@ -32,7 +38,7 @@ all: test
 
 help:
 	@echo "Each target runs 'ehw COMMAND' (ehw --help; ehw COMMAND --help); ARGS=... adds options."
-	@echo "make sim       ehw sim: on-line model-based experiment (BACKEND=reference|amaranth|cocotb, SIM=verilator|icarus, SEED=1, HDL_SAMPLE, WAVES=1)"
+	@echo "make sim       ehw sim: on-line model-based experiment (BACKEND=reference|amaranth|cocotb|serial|uart, SIM=verilator|icarus, SEED=1, HDL_SAMPLE, WAVES=1; serial: PORT=, PORT2=, BAUD=)"
 	@echo "make test      the whole test suite (creates .venv, installs iverilog if missing)"
 	@echo "make test-fast the suite without the cocotb/Verilator simulator builds (the inner loop)"
 	@echo "make offline   ehw offline: off-line model-free experiment"
@@ -80,7 +86,7 @@ test-fast: $(STAMP)
 	$(PY) -m pytest -n $(JOBS) -m "not cocotb and not verilator" $(ARGS)
 
 sim: $(STAMP) hdl-tools
-	$(EHW) sim --backend $(BACKEND) --seed $(SEED) $(if $(SIM),--simulator $(SIM)) \
+	EHW_PORT=$(PORT) EHW_PORT2=$(PORT2) EHW_BAUD=$(BAUD) $(EHW) sim --backend $(BACKEND) --seed $(SEED) $(if $(SIM),--simulator $(SIM)) \
 	  $(if $(HDL_SAMPLE),--hdl-sample $(HDL_SAMPLE)) $(if $(filter-out 0,$(WAVES)),--waves) $(ARGS)
 
 offline: $(STAMP)
