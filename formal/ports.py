@@ -30,12 +30,72 @@ CONTROLLER_PROBES = {
 }
 
 
+# EvaluatorEHW (hdl/evaluator_ehw.py), module evaluator_ehw.
+EVALUATOR_PORTS = {
+    "clk": "clk",
+    "rst": "rst",
+    "row_addr": "row_addr",
+    "row_data": "row_data",
+    "row_we": "row_we",
+    "model_state": "model_state",
+    "model_motion": "model_motion",
+    "model_next": "model_next",
+    "model_crash": "model_crash",
+    "model_valid": "model_valid",
+    "model_we": "model_we",
+    "state_value": "state_value",
+    "state_we": "state_we",
+    "clear": "clear",
+    "reflex_en": "reflex_en",
+    "start": "start",
+    "ready": "ready",
+    "busy": "busy",
+    "done": "done",
+    "crashes": "crashes",
+    "loops": "loops",
+    "distance": "distance",
+    "cycles": "cycles",
+    "n_states": "n_states",
+}
+EVALUATOR_PROBES = {
+    "probe_fsm": "fsm_state",          # Amaranth's FSM state register (encoding: fsm_encoding())
+    "probe_clear_addr": "clear_addr",  # the Clear sweep's address
+    "probe_in_set": "in_set",          # S
+    "probe_tested": "tested",
+    "probe_acc_cycles": "acc_cycles",
+    "probe_arch": "arch",              # the active configuration
+    "probe_tracing": "tracing",        # in Trace: the RAM's read data is a live entry
+    "probe_wr_en": "wr__en",           # the RAM's write port
+    "probe_wr_addr": "wr__addr",
+    "probe_wr_data": "wr__data",
+}
+# The RAM abstraction: the memory's cells are deleted and its read data is this harness input.
+EVALUATOR_RAM_READ = ("rd__data", "ram_data")
+
+
+def fsm_encoding(component) -> dict[str, int]:
+    """State name -> code of the component's FSM (Amaranth numbers states in order of first
+    mention). Read from the elaborated Module, so a reordering in hdl/ cannot go unnoticed."""
+    module = component.elaborate(None)
+    fsm = module._generated.get("fsm")
+    if fsm is None:
+        raise ValueError(f"{type(component).__name__} has no FSM named 'fsm'")
+    return dict(fsm.encoding)
+
+
 def port_macro(ports: dict[str, str]) -> str:
     """A Verilog ``define`` of the named port connections ``.verilog_name(harness_name)``."""
     connections = ", ".join(f".{verilog}({harness})" for harness, verilog in ports.items())
     return f"`define DUT_PORTS {connections}\n"
 
 
+def fsm_macros(encoding: dict[str, int]) -> str:
+    """Verilog ``define``s FSM_<STATE> for each FSM state code."""
+    return "".join(f"`define FSM_{name.upper()} {code}\n" for name, code in encoding.items())
+
+
 def probe_commands(probes: dict[str, str], instance: str = "dut") -> list[str]:
     """Yosys commands (after ``flatten``) that drive each harness probe from the DUT's register."""
-    return [f"connect -set {harness} {instance}.{inner}" for harness, inner in probes.items()]
+    # -nounset: the probe wire is undriven, but proc may have made other wires its aliases; a
+    # plain -set would disconnect those aliases from it (and leave them free for the solver).
+    return [f"connect -nounset -set {harness} {instance}.{inner}" for harness, inner in probes.items()]
