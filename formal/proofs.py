@@ -113,7 +113,7 @@ def controller_verilog(k: int) -> str:
 
 def _controller_build(k: int):
     def build(workdir: Path) -> str:
-        from hdl.controller_ehw import row_addr_bits
+        from hdl.ports import row_addr_bits
 
         (workdir / "controller_ehw.v").write_text(controller_verilog(k))
         (workdir / "dut_ports.vh").write_text(ports.port_macro(ports.CONTROLLER_PORTS))
@@ -148,17 +148,27 @@ CONTROLLER_ASSUMPTIONS = (
 # -- 3. EvaluatorEHW by temporal induction, with the RAM abstracted ---------------------------------
 
 
-def _evaluator_build(k: int):
+def _evaluator_build(k: int, count_depth: int | None = None):
+    """The induction (``count_depth`` None) or the bounded check of the N + 1 count."""
     def build(workdir: Path) -> str:
-        from hdl.controller_ehw import row_addr_bits
+        from hdl.ports import row_addr_bits
         from hdl.evaluator_ehw import EvaluatorEHW
 
         dut = EvaluatorEHW(k=k)
         (workdir / "evaluator_ehw.v").write_text(
             verilog.convert(dut, name="evaluator_ehw", emit_src=False))
+        encoding = ports.fsm_encoding(EvaluatorEHW(k=k))
         (workdir / "dut.vh").write_text(ports.port_macro(ports.EVALUATOR_PORTS)
-                                        + ports.fsm_macros(ports.fsm_encoding(EvaluatorEHW(k=k))))
+                                        + ports.fsm_macros(encoding))
         ram_read, harness_input = ports.EVALUATOR_RAM_READ
+        if count_depth is None:
+            solve = ("sat -tempinduct -prove-asserts -set-assumes -set-at 1 rst 1 -seq 1 "
+                     "-maxsteps 3 -verify -show-inputs")
+        else:
+            # From the state the reset sweep leaves (every register at its reset value, the FSM
+            # in Idle; the RAM is abstracted anyway), no further reset, every other input free.
+            solve = (f"sat -seq {count_depth} -set-init-zero -set-init dut.fsm_state {encoding['Idle']} "
+                     f"-set rst 0 -set-assumes -prove count_ok 1 -verify -show-inputs")
         return "\n".join([
             "read_verilog evaluator_ehw.v",
             f"read_verilog -formal -sv -I. {_source('evaluator_props.sv')}",
@@ -177,8 +187,7 @@ def _evaluator_build(k: int):
             "chformal -lower",
             "async2sync",
             "opt -fast",
-            "stat",
-            "sat -tempinduct -prove-asserts -set-assumes -set-at 1 rst 1 -seq 1 -maxsteps 3 -verify -show-inputs",
+            solve,
         ]) + "\n"
     return build
 
@@ -240,6 +249,18 @@ PROOFS: list[Proof] = [
         engine="yosys sat -tempinduct",
         depth="induction",
         build=_evaluator_build(4),
+        fast=True,
+    ),
+    Proof(
+        name="evaluator_ehw_count_k4",
+        claim="EvaluatorEHW(k=4): done N + 1 edges after the accepted start and cycles = N + 1, "
+              "for every model of up to 4 states and any entries (bounded, 10 cycles after Idle)",
+        assumptions=EVALUATOR_ASSUMPTIONS[1:3] + (
+            "starts in the state a reset and its 2,049-cycle sweep leave (all registers at their "
+            "reset values, FSM Idle, S empty), no reset afterwards",),
+        engine="yosys sat -seq (bounded)",
+        depth="10 cycles",
+        build=_evaluator_build(4, count_depth=10),
         fast=True,
     ),
     Proof(
