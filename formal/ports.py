@@ -76,10 +76,12 @@ EVALUATOR_RAM_READ = ("rd__data", "ram_data")
 def fsm_encoding(component) -> dict[str, int]:
     """State name -> code of the component's FSM (Amaranth numbers states in order of first
     mention). Read from the elaborated Module, so a reordering in hdl/ cannot go unnoticed."""
-    module = component.elaborate(None)
-    fsm = module._generated.get("fsm")
-    if fsm is None:
-        raise ValueError(f"{type(component).__name__} has no FSM named 'fsm'")
+    from amaranth.hdl import Fragment
+
+    try:
+        fsm = Fragment.get(component, None).find_generated("fsm")
+    except KeyError:
+        raise ValueError(f"{type(component).__name__} has no FSM named 'fsm'") from None
     return dict(fsm.encoding)
 
 
