@@ -69,6 +69,25 @@ EVALUATOR_PROBES = {
     "probe_wr_addr": "wr__addr",
     "probe_wr_data": "wr__data",
 }
+# hdl.link.FrameReceiver, module frame_receiver (the host link's frame decoder).
+LINK_PORTS = {
+    "clk": "clk",
+    "rst": "rst",
+    "valid": "data__valid",
+    "payload": "data__payload",
+    "ready": "data__ready",
+    "header": "header",
+    "done": "done",
+    "ok": "ok",
+    "truncated": "truncated",
+}
+LINK_PROBES = {
+    "probe_fsm": "fsm_state",
+    "probe_position": "position",
+    "probe_silent": "silent",
+    "probe_crc": "crc.crc_reg",   # lib.crc.Processor's CRC register
+}
+
 # The RAM abstraction: the memory's cells are deleted and its read data is this harness input.
 EVALUATOR_RAM_READ = ("rd__data", "ram_data")
 
