@@ -299,13 +299,13 @@ PROOFS: list[Proof] = [
     Proof(
         name="evaluator_ehw_count_k4",
         claim="EvaluatorEHW(k=4): done N + 1 edges after the accepted start and cycles = N + 1, "
-              "for every model of up to 3 states and any entries (bounded: 8 cycles from Idle)",
+              "for every model of up to 2 states and any entries (bounded: 6 cycles from Idle)",
         assumptions=EVALUATOR_ASSUMPTIONS[1:3] + (
             "starts in the state a reset and its 2,049-cycle sweep leave (all registers at their "
             "reset values, FSM Idle, S empty), no reset afterwards",),
         engine="yosys sat -seq (bounded)",
-        depth="8 cycles",
-        build=_evaluator_build(4, count_depth=8),
+        depth="6 cycles",
+        build=_evaluator_build(4, count_depth=6),
         fast=True,
     ),
     Proof(
