@@ -42,6 +42,20 @@ class Proof:
     timeout: float = 900.0
 
 
+def _mutated(build, filename: str, pattern: str, replacement: str):
+    """``build`` with one edit of the generated ``filename`` (a regular expression that must
+    match exactly once): a mutant the proof has to reject."""
+    def mutant_build(workdir: Path) -> str:
+        script = build(workdir)
+        path = workdir / filename
+        text, count = re.subn(pattern, replacement, path.read_text())
+        if count != 1:
+            raise ValueError(f"mutation {pattern!r} matched {count} times in {filename}, not once")
+        path.write_text(text)
+        return script
+    return mutant_build
+
+
 def _source(name: str) -> str:
     """Path of a hand-written file of this folder, as Yosys reads it from a work folder."""
     return str(HERE / name)
@@ -233,7 +247,8 @@ def _link_build(timeout: int):
             "chformal -lower",
             "async2sync",
             "opt -fast",
-            "sat -tempinduct -prove-asserts -set-at 1 rst 1 -seq 1 -maxsteps 4 -verify -show-inputs",
+            # (12 steps: a failing property shows in a whole frame, SYNC to verdict, 9 cycles)
+            "sat -tempinduct -prove-asserts -set-at 1 rst 1 -seq 1 -maxsteps 12 -verify -show-inputs",
         ]) + "\n"
     return build
 
@@ -287,6 +302,18 @@ PROOFS: list[Proof] = [
         build=_controller_build(50),
     ),
     Proof(
+        name="controller_ehw_mutant",
+        claim="the controller proof rejects a board whose commit drops the row written in the "
+              "commit cycle (active := shadow instead of the shadow with that write)",
+        assumptions=CONTROLLER_ASSUMPTIONS,
+        engine="yosys sat -tempinduct",
+        depth="induction",
+        build=_mutated(_controller_build(4), "controller_ehw.v",
+                       r"(if \(commit\) begin\n\s+\S+  = )shadow_next;", r"\1shadow;"),
+        fast=True,
+        expect="fail",
+    ),
+    Proof(
         name="evaluator_ehw_k4",
         claim="EvaluatorEHW(k=4): handshake, write, reset-sweep and N + 1 cycle-count properties "
               "of formal/evaluator_props.sv, for world models of any size",
@@ -320,6 +347,17 @@ PROOFS: list[Proof] = [
         fast=True,
     ),
     Proof(
+        name="link_decoder_mutant",
+        claim="the decoder proof rejects a CRC check that compares only the register's high byte",
+        assumptions=LINK_ASSUMPTIONS,
+        engine="yosys sat -tempinduct",
+        depth="induction",
+        build=_mutated(_link_build(LINK_TIMEOUT_CYCLES), "frame_receiver.v",
+                       r"assign match_detected = ! crc_reg;", "assign match_detected = ! crc_reg[15:8];"),
+        fast=True,
+        expect="fail",
+    ),
+    Proof(
         name="evaluator_ehw",
         claim="EvaluatorEHW (k=50, double-buffered, the board): the properties of formal/evaluator_props.sv",
         assumptions=EVALUATOR_ASSUMPTIONS,
@@ -341,11 +379,15 @@ _INDUCTION = re.compile(r"Trying induction with length (\d+)")
 
 
 def verdict(run) -> str:
-    """"pass" (proven), "fail" (a counterexample) or "error" (the script did not get there)."""
-    if run.returncode == 0 and ("SUCCESS!" in run.log):
+    """"pass" (proven), "fail" (the solver found a counterexample: a real trace from reset, or
+    inputs of the combinational miter), "unproven" (the induction did not close within its
+    steps, and no counterexample either) or "error" (the script did not get there)."""
+    if run.returncode == 0 and "SUCCESS!" in run.log:
         return "pass"
-    if "proof did fail" in run.log or "FAIL!" in run.log:
+    if "model found: FAIL!" in run.log or "model found for base case: FAIL!" in run.log:
         return "fail"
+    if "Reached maximum number of time steps -> proof failed" in run.log:
+        return "unproven"
     return "error"
 
 
