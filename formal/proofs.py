@@ -324,6 +324,17 @@ PROOFS: list[Proof] = [
         fast=True,
     ),
     Proof(
+        name="evaluator_ehw_mutant",
+        claim="the evaluator proof rejects a board that adds states to S while busy",
+        assumptions=EVALUATOR_ASSUMPTIONS,
+        engine="yosys sat -tempinduct",
+        depth="induction",
+        build=_mutated(_evaluator_build(4), "evaluator_ehw.v",
+                       r"(assign \S+  = )state_we & ready;", r"\1state_we;"),
+        fast=True,
+        expect="fail",
+    ),
+    Proof(
         name="evaluator_ehw_count_k4",
         claim="EvaluatorEHW(k=4): done N + 1 edges after the accepted start and cycles = N + 1, "
               "for every model of up to 2 states and any entries (bounded: 6 cycles from Idle)",
