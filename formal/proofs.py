@@ -315,8 +315,10 @@ PROOFS: list[Proof] = [
     ),
     Proof(
         name="evaluator_ehw_k4",
-        claim="EvaluatorEHW(k=4): handshake, write, reset-sweep and N + 1 cycle-count properties "
-              "of formal/evaluator_props.sv, for world models of any size",
+        claim="EvaluatorEHW(k=4): handshake, write and reset-sweep properties, and the structure "
+              "of the cycle count (one new state of S per Trace cycle, done when all of S is "
+              "tested, cycles = edges since start) of formal/evaluator_props.sv, for world "
+              "models of any size",
         assumptions=EVALUATOR_ASSUMPTIONS,
         engine="yosys sat -tempinduct",
         depth="induction",
