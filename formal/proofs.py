@@ -412,9 +412,11 @@ def run_proof(proof: Proof, build_root: Path | str = "build/formal") -> dict:
     done = run_script(script, workdir, timeout=proof.timeout)
     result = verdict(done)
     depth = proof.depth
-    if proof.depth == "induction" and result == "pass":
-        lengths = _INDUCTION.findall(done.log)
-        depth = f"induction, length {lengths[-1]}" if lengths else depth
+    lengths = _INDUCTION.findall(done.log)
+    if proof.depth == "induction" and lengths and result == "pass":
+        depth = f"induction, length {lengths[-1]}"
+    elif proof.depth == "induction" and lengths and result == "fail":
+        depth = f"counterexample, base case of length {lengths[-1]}"
     return {
         "proof": proof.name,
         "claim": proof.claim,
