@@ -108,7 +108,7 @@ verilog: $(STAMP)
 
 # Every proof of formal/ (the fast ones also run in `make test`); ARGS e.g. --fast or proof names.
 formal: $(STAMP)
-	$(PY) -m formal --out results/formal.json $(ARGS)
+	$(EHW) formal --out results/formal.json $(ARGS)
 
 bench: $(STAMP) hdl-tools
 	$(EHW) bench $(ARGS)
