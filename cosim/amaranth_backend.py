@@ -30,6 +30,7 @@ import numpy as np
 
 from cosim.boards import EvalCounts, ReferenceControllerBoard, ReferenceEvaluatorBoard, register_backend
 from cosim.hardware_time import CLOCK_HZ
+from hdl.ports import AmaranthPins
 
 IDLE_S = 1e-12  # the serving testbench's wait between jobs: far below a clock period
 SIM_PERIOD_S = 1 / CLOCK_HZ  # the simulated clock (the hardware time uses EHW_CLOCK_HZ)
@@ -37,30 +38,6 @@ SIM_PERIOD_S = 1 / CLOCK_HZ  # the simulated clock (the hardware time uses EHW_C
 
 class BoardMismatch(AssertionError):
     """An HDL board disagreed with the reference model."""
-
-
-class AmaranthPins:
-    """``SystemHost``'s pin interface over an Amaranth testbench context."""
-
-    def __init__(self, dut):
-        self.dut = dut
-        self.ctx = None  # set by the serving testbench
-
-    def set(self, name: str, value: int) -> None:
-        self.ctx.set(getattr(self.dut, name), value)
-
-    def get(self, name: str) -> int:
-        return int(self.ctx.get(getattr(self.dut, name)))
-
-    async def tick(self) -> None:
-        await self.ctx.tick()
-
-    async def wait(self, name: str) -> None:
-        """Tick until ``name`` reads 1 (at least one tick)."""
-        signal = getattr(self.dut, name)
-        await self.ctx.tick()
-        while not self.ctx.get(signal):
-            await self.ctx.tick()
 
 
 class AmaranthSystem:

@@ -35,6 +35,7 @@ from pathlib import Path
 from cosim.amaranth_backend import SAMPLE_ENV, BoardLog, HDLControllerBoard, HDLEvaluatorBoard
 from cosim.hardware_time import clock_hz_default, hardware_line
 from cosim.boards import register_backend
+from hdl.ports import CocotbPins
 
 TOPLEVEL = "system_top"
 CONFIG_ENV = "EHW_ONLINE_CONFIG"
@@ -43,44 +44,6 @@ P_MAX_ENV = "EHW_SYSTEM_P_MAX"  # the population RAM depth of the Verilog under 
 CLOCK_PERIOD_NS = 10  # simulated clock; the hardware time uses the FPGA clock (EHW_CLOCK_HZ)
 
 _active_system = None  # the CocotbSystem of the running test (inside the simulator only)
-
-
-class CocotbPins:
-    """``SystemHost``'s pin interface over cocotb handles: inputs are set after a falling edge, the
-    rising edge in mid-cycle samples them, outputs are read at the next falling edge."""
-
-    def __init__(self, dut):
-        from cocotb.triggers import FallingEdge
-
-        self.dut = dut
-        self._handles = {}
-        self._falling = FallingEdge(dut.clk)
-
-    def _handle(self, name):
-        handle = self._handles.get(name)
-        if handle is None:
-            handle = self._handles[name] = getattr(self.dut, name)
-        return handle
-
-    def set(self, name: str, value: int) -> None:
-        self._handle(name).value = value
-
-    def get(self, name: str) -> int:
-        value = self._handle(name).value
-        try:
-            return value.to_unsigned() if hasattr(value, "to_unsigned") else int(value)
-        except ValueError:
-            raise ValueError(f"{name} reads {value!s}: not a number (X or Z bits)") from None
-
-    async def tick(self) -> None:
-        await self._falling
-
-    async def wait(self, name: str) -> None:
-        """Until ``name`` has risen, then to the falling edge after it (as ticking until it reads 1)."""
-        from cocotb.triggers import RisingEdge
-
-        await RisingEdge(self._handle(name))
-        await self._falling
 
 
 class CocotbSystem:

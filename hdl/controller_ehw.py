@@ -2,7 +2,7 @@
 
 Timing plan (one clock domain, ``sync``, synchronous reset):
 
-- Row write: with ``row_we`` high during cycle t, ``row_data`` replaces row ``row_addr`` of the
+- Row write: with ``row.we`` high during cycle t, ``row.data`` replaces row ``row.addr`` of the
   *shadow* configuration at the clock edge that ends cycle t. Addresses >= k are ignored. The
   shadow never drives the array.
 - Commit: with ``commit`` high during cycle t, the shadow (including a row written in the same
@@ -30,11 +30,7 @@ from amaranth.lib.wiring import In, Out
 from ga.genome import N_ROWS, ROW_BITS
 from ga.motions import N_INPUTS, N_OUTPUTS, OBSTACLE_MASK, REFLEX_MOTION, SECTOR_SHIFT
 from hdl.and_or_array import AndOrArray, _check_positive
-
-
-def row_addr_bits(k: int) -> int:
-    """Width of a row address for ``k`` rows (6 for the paper's 50)."""
-    return max(1, (k - 1).bit_length())
+from hdl.ports import RowWriteSignature, row_addr_bits  # noqa: F401  (row_addr_bits: re-export)
 
 
 class ControllerEHW(wiring.Component):
@@ -48,12 +44,11 @@ class ControllerEHW(wiring.Component):
 
     Ports
     -----
-    row_addr : In(6)
-        Row to write (0..k-1; larger addresses are ignored).
-    row_data : In(19)
-        The row word (SPEC section 3: bit 2i x_i, 2i + 1 NOT x_i, 16 + j drives y_j).
-    row_we : In(1)
-        Write ``row_data`` into shadow row ``row_addr`` at the next clock edge.
+    row : In(RowWriteSignature(k))
+        Row-write port (``hdl.ports``): ``row.we`` writes the row word ``row.data`` (SPEC section 3:
+        bit 2i x_i, 2i + 1 NOT x_i, 16 + j drives y_j) into shadow row ``row.addr`` (0..k-1;
+        larger addresses are ignored) at the next clock edge. Verilog: ``row__addr`` [5:0],
+        ``row__data`` [18:0], ``row__we``.
     commit : In(1)
         Copy the shadow (with this cycle's write, if any) into the active configuration at the
         next clock edge.
@@ -72,9 +67,7 @@ class ControllerEHW(wiring.Component):
         self.row_bits = ROW_BITS
         assert ROW_BITS == 2 * N_INPUTS + N_OUTPUTS
         super().__init__({
-            "row_addr": In(row_addr_bits(k)),
-            "row_data": In(ROW_BITS),
-            "row_we": In(1),
+            "row": In(RowWriteSignature(k)),
             "commit": In(1),
             "x": In(N_INPUTS),
             "reflex_en": In(1),
@@ -92,9 +85,9 @@ class ControllerEHW(wiring.Component):
         shadow_next = Signal(k * W)  # the shadow after this cycle's write: what a commit takes
         m.d.comb += shadow_next.eq(shadow)
         for r in range(k):
-            write_r = self.row_we & (self.row_addr == r)
+            write_r = self.row.we & (self.row.addr == r)
             with m.If(write_r):
-                m.d.comb += shadow_next[r * W:(r + 1) * W].eq(self.row_data)
+                m.d.comb += shadow_next[r * W:(r + 1) * W].eq(self.row.data)
         m.d.sync += shadow.eq(shadow_next)
         with m.If(self.commit):
             m.d.sync += active.eq(shadow_next)

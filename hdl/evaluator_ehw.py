@@ -72,14 +72,11 @@ from ga.genome import N_ROWS, ROW_BITS
 from ga.motions import (MAX_MOTION_DISTANCE_MM, N_INPUTS, N_MOTIONS, N_OUTPUTS, N_STATES,
                         OBSTACLE_MASK, REFLEX_MOTION, SECTOR_SHIFT, motion_distances)
 from hdl.and_or_array import AndOrArray, _check_positive
-from hdl.controller_ehw import row_addr_bits
+from hdl.ports import (COUNT_BITS, DISTANCE_BITS, ENTRY_LAYOUT, AmaranthPins, ModelWriteSignature,
+                       RowWriteSignature, write_rows)
 from ga.world_model import WorldModel
 
-# One world-model RAM entry (SPEC section 8). valid = 0: the transition is unknown.
-ENTRY_LAYOUT = data.StructLayout({"next": N_INPUTS, "crash": 1, "valid": 1})
 RAM_DEPTH = N_STATES * N_MOTIONS  # 2^(n+3)
-COUNT_BITS = N_STATES.bit_length()  # 9: counts 0..256 (states, crashes, loops)
-DISTANCE_BITS = 16
 CYCLE_BITS = 16
 assert N_STATES * MAX_MOTION_DISTANCE_MM < 1 << DISTANCE_BITS
 
@@ -110,14 +107,16 @@ class EvaluatorEHW(wiring.Component):
 
     Ports
     -----
-    row_addr : In(6), row_data : In(19), row_we : In(1)
-        Row-write port into the shadow configuration (as the controller board's); addresses
-        >= k are ignored. Accepted in every state (``double_buffer=False``: only when ready).
-    model_state : In(8), model_motion : In(3), model_next : In(8), model_crash : In(1),
-    model_valid : In(1), model_we : In(1)
-        World-model write port: entry (state, motion) := {next, crash, valid} at the next edge,
-        when ``ready``. The host applies the update rule (``ga.world_model``) and writes the
-        resulting entry.
+    row : In(RowWriteSignature(k))
+        Row-write port into the shadow configuration (``hdl.ports``, as the controller board's);
+        addresses >= k are ignored. Accepted in every state (``double_buffer=False``: only when
+        ready). Verilog: ``row__addr``, ``row__data``, ``row__we``.
+    model : In(ModelWriteSignature())
+        World-model write port (``hdl.ports``): entry (``model.state``, ``model.motion``) :=
+        {``next``, ``crash``, ``valid``} at the next edge when ``model.we`` and ``ready``. The
+        host applies the update rule (``ga.world_model``) and writes the resulting entry.
+        Verilog: ``model__state``, ``model__motion``, ``model__next``, ``model__crash``,
+        ``model__valid``, ``model__we``.
     state_value : In(8), state_we : In(1)
         Add ``state_value`` to S at the next edge, when ``ready`` (adding a member is harmless).
     clear : In(1)
@@ -147,15 +146,8 @@ class EvaluatorEHW(wiring.Component):
         self.double_buffer = double_buffer
         self.row_bits = ROW_BITS
         super().__init__({
-            "row_addr": In(row_addr_bits(self.k)),
-            "row_data": In(ROW_BITS),
-            "row_we": In(1),
-            "model_state": In(N_INPUTS),
-            "model_motion": In(N_OUTPUTS),
-            "model_next": In(N_INPUTS),
-            "model_crash": In(1),
-            "model_valid": In(1),
-            "model_we": In(1),
+            "row": In(RowWriteSignature(self.k)),
+            "model": In(ModelWriteSignature()),
             "state_value": In(N_INPUTS),
             "state_we": In(1),
             "clear": In(1),
@@ -183,15 +175,15 @@ class EvaluatorEHW(wiring.Component):
         if self.double_buffer:
             shadow = Signal(k * W)
             arch = Signal(k * W)
-            row_write = self.row_we  # always: the shadow never drives the array
+            row_write = self.row.we  # always: the shadow never drives the array
         else:
             shadow = arch = Signal(k * W)  # the rows go straight to the array: only while idle
-            row_write = self.row_we & self.ready
+            row_write = self.row.we & self.ready
         shadow_next = Signal(k * W)  # the shadow after this cycle's row write: what start takes
         m.d.comb += shadow_next.eq(shadow)
         for r in range(k):
-            with m.If(row_write & (self.row_addr == r)):
-                m.d.comb += shadow_next[r * W:(r + 1) * W].eq(self.row_data)
+            with m.If(row_write & (self.row.addr == r)):
+                m.d.comb += shadow_next[r * W:(r + 1) * W].eq(self.row.data)
         m.d.sync += shadow.eq(shadow_next)
 
         # -- state set S ---------------------------------------------------------------------------
@@ -250,10 +242,12 @@ class EvaluatorEHW(wiring.Component):
         clear_addr = Signal(range(RAM_DEPTH))
 
         # RAM writes: the host's while idle, the Clear sweep's while clearing.
-        host_write = self.model_we & self.ready
+        host_write = self.model.we & self.ready
         m.d.comb += [
-            wr.addr.eq(Cat(self.model_motion, self.model_state)),
-            wr.data.eq(Cat(self.model_next, self.model_crash, self.model_valid)),
+            wr.addr.eq(Cat(self.model.motion, self.model.state)),
+            wr.data.next.eq(self.model.next),
+            wr.data.crash.eq(self.model.crash),
+            wr.data.valid.eq(self.model.valid),
             wr.en.eq(host_write),
         ]
 
@@ -347,91 +341,85 @@ class EvaluatorEHW(wiring.Component):
 
 class EvaluatorSimHost:
     """The host side of the evaluator's ports in Amaranth's simulator (testbench context ``ctx``):
-    the protocol of the module docstring as coroutines. Inputs are set before ``ctx.tick()``, the
-    edge samples them, outputs are read after it; ``cycle`` counts the edges.
+    the protocol of the module docstring as coroutines, over ``hdl.ports.AmaranthPins``. Inputs
+    are set before ``ctx.tick()``, the edge samples them, outputs are read after it; ``cycle``
+    counts the edges.
     """
 
     def __init__(self, ctx, dut):
         self.ctx, self.dut = ctx, dut
+        self.pins = _CountingPins(AmaranthPins(dut, ctx), self)
         self.cycle = 0  # clock edges so far
 
     async def tick(self):
-        await self.ctx.tick()
-        self.cycle += 1
+        await self.pins.tick()
 
     def set_entry(self, state, motion, next_state, crash, valid=1):
-        ctx, dut = self.ctx, self.dut
-        ctx.set(dut.model_state, int(state))
-        ctx.set(dut.model_motion, int(motion))
-        ctx.set(dut.model_next, int(next_state))
-        ctx.set(dut.model_crash, int(crash))
-        ctx.set(dut.model_valid, int(valid))
-        ctx.set(dut.model_we, 1)
+        pins = self.pins
+        pins.set("model__state", int(state))
+        pins.set("model__motion", int(motion))
+        pins.set("model__next", int(next_state))
+        pins.set("model__crash", int(crash))
+        pins.set("model__valid", int(valid))
+        pins.set("model__we", 1)
 
     async def wait_ready(self):
-        while not self.ctx.get(self.dut.ready):
+        while not self.pins.get("ready"):
             await self.tick()
 
     async def write_model(self, model: WorldModel):
         """Every valid entry and every state of S, one entry and one state per cycle (in parallel)."""
-        ctx, dut = self.ctx, self.dut
+        pins = self.pins
         entries, states = model.entries(), model.states
         for i in range(max(len(entries), len(states))):
-            assert ctx.get(dut.ready)
+            assert pins.get("ready")
             if i < len(entries):
                 self.set_entry(*entries[i])
             if i < len(states):
-                ctx.set(dut.state_value, int(states[i]))
-                ctx.set(dut.state_we, 1)
+                pins.set("state_value", int(states[i]))
+                pins.set("state_we", 1)
             await self.tick()
-            ctx.set(dut.model_we, 0)
-            ctx.set(dut.state_we, 0)
+            pins.set("model__we", 0)
+            pins.set("state_we", 0)
 
     async def write_entry(self, state, motion, next_state, crash, valid=1):
         self.set_entry(state, motion, next_state, crash, valid)
         await self.tick()
-        self.ctx.set(self.dut.model_we, 0)
+        self.pins.set("model__we", 0)
 
     async def observe(self, model: WorldModel, state, motion, next_state, crashed):
         """Apply one observation to the host's mirror ``model`` (SPEC section 7 rule, in
         ``ga.world_model``) and write the resulting entry and both states: 2 cycles, when ready."""
         model.observe(state, motion, next_state, crashed)
-        ctx, dut = self.ctx, self.dut
+        pins = self.pins
         self.set_entry(state, motion, model.next_state[state, motion], model.crash[state, motion])
-        ctx.set(dut.state_value, int(state))
-        ctx.set(dut.state_we, 1)
+        pins.set("state_value", int(state))
+        pins.set("state_we", 1)
         await self.tick()
-        ctx.set(dut.model_we, 0)
-        ctx.set(dut.state_value, int(next_state))
+        pins.set("model__we", 0)
+        pins.set("state_value", int(next_state))
         await self.tick()
-        ctx.set(dut.state_we, 0)
+        pins.set("state_we", 0)
 
     async def add_state(self, state):
-        self.ctx.set(self.dut.state_value, int(state))
-        self.ctx.set(self.dut.state_we, 1)
+        self.pins.set("state_value", int(state))
+        self.pins.set("state_we", 1)
         await self.tick()
-        self.ctx.set(self.dut.state_we, 0)
+        self.pins.set("state_we", 0)
 
     def results(self):
-        ctx, dut = self.ctx, self.dut
-        return (ctx.get(dut.crashes), ctx.get(dut.loops), ctx.get(dut.distance)), ctx.get(dut.cycles)
+        get = self.pins.get
+        return (get("crashes"), get("loops"), get("distance")), get("cycles")
 
     async def evaluate(self, rows, reflex=True):
         """Load 50 rows (start with the last), wait for done. Returns (counts, cycles register,
         clock edges from the first row write to done: the per-controller cost, loading included)."""
-        ctx, dut = self.ctx, self.dut
-        ctx.set(dut.reflex_en, int(reflex))
+        pins = self.pins
+        pins.set("reflex_en", int(reflex))
         first = self.cycle
-        for r, word in enumerate(rows):
-            ctx.set(dut.row_addr, r)
-            ctx.set(dut.row_data, int(word))
-            ctx.set(dut.row_we, 1)
-            ctx.set(dut.start, int(r == len(rows) - 1))
-            await self.tick()
-        ctx.set(dut.row_we, 0)
-        ctx.set(dut.start, 0)
-        while not ctx.get(dut.done):
-            assert ctx.get(dut.busy) and not ctx.get(dut.ready)
+        await write_rows(pins, "row", rows, strobe="start")
+        while not pins.get("done"):
+            assert pins.get("busy") and not pins.get("ready")
             await self.tick()
         counts, cycles = self.results()
         return counts, cycles, self.cycle - first
@@ -441,32 +429,44 @@ class EvaluatorSimHost:
         as the board is ready and its rows are in. Returns ([counts], [cycles], total edges)."""
         if not self.dut.double_buffer:
             raise ValueError("overlapped loading needs EvaluatorEHW(double_buffer=True)")
-        ctx, dut = self.ctx, self.dut
-        ctx.set(dut.reflex_en, int(reflex))
+        pins = self.pins
+        pins.set("reflex_en", int(reflex))
         first = self.cycle
         counts, cycles = [], []
         loading, row = 0, 0  # the controller being loaded, its next row
         while len(counts) < len(population):
             write = loading < len(population) and row < len(population[loading])
             if write:
-                ctx.set(dut.row_addr, row)
-                ctx.set(dut.row_data, int(population[loading][row]))
-            ctx.set(dut.row_we, int(write))
+                pins.set("row__addr", row)
+                pins.set("row__data", int(population[loading][row]))
+            pins.set("row__we", int(write))
             loaded = loading < len(population) and row >= len(population[loading]) - 1
-            start = loaded and ctx.get(dut.ready)
-            ctx.set(dut.start, int(start))
+            start = loaded and pins.get("ready")
+            pins.set("start", int(start))
             await self.tick()
             if write:
                 row += 1
             if start:
                 loading, row = loading + 1, 0
-            if ctx.get(dut.done):
+            if pins.get("done"):
                 c, n = self.results()
                 counts.append(c)
                 cycles.append(n)
-        ctx.set(dut.row_we, 0)
-        ctx.set(dut.start, 0)
+        pins.set("row__we", 0)
+        pins.set("start", 0)
         return counts, cycles, self.cycle - first
+
+
+class _CountingPins:
+    """Pins that count the clock edges into ``host.cycle``."""
+
+    def __init__(self, pins, host):
+        self._pins, self._host = pins, host
+        self.set, self.get = pins.set, pins.get
+
+    async def tick(self):
+        await self._pins.tick()
+        self._host.cycle += 1
 
 
 def simulate_population(model, population, reflex: bool = True, overlap: bool = True,

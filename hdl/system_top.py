@@ -31,16 +31,16 @@ Timing (``sync`` domain, synchronous reset; inputs sampled at the rising edge en
   stream; ``pop_busy`` is high from cycle t + 1 until the cycle in which ``pop_done`` is high.
   A population of P controllers on a model of N states costs about P * max(N + 2, 51) + 50
   cycles (``pop_cycles``).
-- ``res_addr`` in cycle t gives ``res_data`` in cycle t + 1 (synchronous read): bits 0-8
-  crashes, 9-17 loops, 18-33 distance, as the evaluator's result registers.
-- World-model and state writes (``ev_model_*``, ``ev_state_*``) and ``ev_clear`` go straight to
+- ``res_addr`` in cycle t gives ``res_data`` in cycle t + 1 (synchronous read): a word of
+  ``hdl.ports.RESULT_LAYOUT`` (crashes, loops, distance, as the evaluator's result registers).
+- World-model and state writes (``ev_model``, ``ev_state_*``) and ``ev_clear`` go straight to
   the evaluator: only while it is ``ev_ready`` and no stream runs. After reset the evaluator sweeps
   its RAM (2049 cycles): wait for ``ev_ready``.
 """
 
 from __future__ import annotations
 
-from amaranth.hdl import Cat, Module, Signal
+from amaranth.hdl import Module, Signal
 from amaranth.lib import wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
@@ -48,18 +48,14 @@ from amaranth.lib.wiring import In, Out
 from ga.genome import GENOME_BITS, N_ROWS, ROW_BITS
 from ga.motions import N_INPUTS, N_OUTPUTS
 from hdl.and_or_array import _check_positive
-from hdl.controller_ehw import ControllerEHW, row_addr_bits
-from hdl.evaluator_ehw import COUNT_BITS, DISTANCE_BITS, EvaluatorEHW
+from hdl.controller_ehw import ControllerEHW
+from hdl.evaluator_ehw import COUNT_BITS, EvaluatorEHW
+from hdl.ports import (RESULT_LAYOUT, ModelWriteSignature, RowWriteSignature, unpack_result,  # noqa: F401
+                       write_rows)
 
 P_MAX = 512  # controllers per stream: the paper's population of 500 fits in one
-RESULT_BITS = 2 * COUNT_BITS + DISTANCE_BITS  # crashes | loops | distance = 34 bits
+RESULT_BITS = RESULT_LAYOUT.size  # crashes | loops | distance = 34 bits
 POP_CYCLE_BITS = 32
-
-
-def unpack_result(word: int) -> tuple[int, int, int]:
-    """(crashes, loops, distance) from a ``res_data`` word."""
-    mask = (1 << COUNT_BITS) - 1
-    return word & mask, (word >> COUNT_BITS) & mask, word >> (2 * COUNT_BITS)
 
 
 class SystemTop(wiring.Component):
@@ -72,11 +68,10 @@ class SystemTop(wiring.Component):
 
     Ports
     -----
-    ctl_row_addr : In(6), ctl_row_data : In(19), ctl_row_we : In(1), ctl_commit : In(1),
-    ctl_x : In(8), ctl_reflex_en : In(1), ctl_motion : Out(3)
-        The controller board's ports (docs/hdl_controller.md).
-    ev_model_state : In(8), ev_model_motion : In(3), ev_model_next : In(8), ev_model_crash : In(1),
-    ev_model_valid : In(1), ev_model_we : In(1), ev_state_value : In(8), ev_state_we : In(1),
+    ctl_row : In(RowWriteSignature()), ctl_commit : In(1), ctl_x : In(8), ctl_reflex_en : In(1),
+    ctl_motion : Out(3)
+        The controller board's ports (docs/hdl_controller.md), forwarded to it.
+    ev_model : In(ModelWriteSignature()), ev_state_value : In(8), ev_state_we : In(1),
     ev_clear : In(1), ev_reflex_en : In(1)
         The evaluator's world-model port, state port, clear and reflex enable (docs/evaluator.md).
     ev_ready : Out(1), ev_n_states : Out(9)
@@ -87,29 +82,21 @@ class SystemTop(wiring.Component):
         Stream controllers 0..pop_size-1 through the evaluator.
     pop_busy : Out(1), pop_done : Out(1), pop_cycles : Out(32)
         Streaming; one-cycle pulse at the end; cycles from ``go`` to ``pop_done``.
-    res_addr : In(9), res_data : Out(34)
-        Results RAM read port (synchronous): crashes | loops << 9 | distance << 18.
+    res_addr : In(9), res_data : Out(RESULT_LAYOUT)
+        Results RAM read port (synchronous): a (crashes, loops, distance) word.
     """
 
     def __init__(self, p_max: int = P_MAX, distance_rule: str = "covered"):
         self.p_max = _check_positive("p_max", p_max)
         self.distance_rule = distance_rule  # dist[a] of the evaluator (ga.motions.DISTANCE_RULES)
         index = max(1, (p_max - 1).bit_length())
-        row_addr = row_addr_bits(N_ROWS)
         super().__init__({
-            "ctl_row_addr": In(row_addr),
-            "ctl_row_data": In(ROW_BITS),
-            "ctl_row_we": In(1),
+            "ctl_row": In(RowWriteSignature(N_ROWS)),
             "ctl_commit": In(1),
             "ctl_x": In(N_INPUTS),
             "ctl_reflex_en": In(1),
             "ctl_motion": Out(N_OUTPUTS),
-            "ev_model_state": In(N_INPUTS),
-            "ev_model_motion": In(N_OUTPUTS),
-            "ev_model_next": In(N_INPUTS),
-            "ev_model_crash": In(1),
-            "ev_model_valid": In(1),
-            "ev_model_we": In(1),
+            "ev_model": In(ModelWriteSignature()),
             "ev_state_value": In(N_INPUTS),
             "ev_state_we": In(1),
             "ev_clear": In(1),
@@ -125,7 +112,7 @@ class SystemTop(wiring.Component):
             "pop_done": Out(1),
             "pop_cycles": Out(POP_CYCLE_BITS),
             "res_addr": In(index),
-            "res_data": Out(RESULT_BITS),
+            "res_data": Out(RESULT_LAYOUT),
         })
 
     def elaborate(self, platform):
@@ -134,10 +121,8 @@ class SystemTop(wiring.Component):
         ev = m.submodules.ev = EvaluatorEHW(distance_rule=self.distance_rule)
 
         # -- the controller board: straight through ---------------------------------------------
+        wiring.connect(m, wiring.flipped(self.ctl_row), ctl.row)
         m.d.comb += [
-            ctl.row_addr.eq(self.ctl_row_addr),
-            ctl.row_data.eq(self.ctl_row_data),
-            ctl.row_we.eq(self.ctl_row_we),
             ctl.commit.eq(self.ctl_commit),
             ctl.x.eq(self.ctl_x),
             ctl.reflex_en.eq(self.ctl_reflex_en),
@@ -145,13 +130,8 @@ class SystemTop(wiring.Component):
         ]
 
         # -- the evaluator's model side: straight through (the host writes only while idle) -------
+        wiring.connect(m, wiring.flipped(self.ev_model), ev.model)
         m.d.comb += [
-            ev.model_state.eq(self.ev_model_state),
-            ev.model_motion.eq(self.ev_model_motion),
-            ev.model_next.eq(self.ev_model_next),
-            ev.model_crash.eq(self.ev_model_crash),
-            ev.model_valid.eq(self.ev_model_valid),
-            ev.model_we.eq(self.ev_model_we),
             ev.state_value.eq(self.ev_state_value),
             ev.state_we.eq(self.ev_state_we),
             ev.clear.eq(self.ev_clear),
@@ -162,7 +142,7 @@ class SystemTop(wiring.Component):
 
         # -- population and results RAMs ---------------------------------------------------------
         pop = m.submodules.pop = Memory(shape=GENOME_BITS, depth=self.p_max, init=[])
-        res = m.submodules.res = Memory(shape=RESULT_BITS, depth=self.p_max, init=[])
+        res = m.submodules.res = Memory(shape=RESULT_LAYOUT, depth=self.p_max, init=[])
         pop_wr = pop.write_port()
         pop_rd = pop.read_port()  # the genome being loaded into the evaluator's shadow
         res_wr = res.write_port()
@@ -186,14 +166,16 @@ class SystemTop(wiring.Component):
             # The read address runs one controller ahead at a start, so that the next genome is
             # on pop_rd.data when its row 0 is written in the following cycle.
             pop_rd.addr.eq(load_idx + start),
-            ev.row_addr.eq(row),
-            ev.row_data.eq(pop_rd.data.word_select(row, ROW_BITS)),
-            ev.row_we.eq(loading),
+            ev.row.addr.eq(row),
+            ev.row.data.eq(pop_rd.data.word_select(row, ROW_BITS)),
+            ev.row.we.eq(loading),
             ev.start.eq(start),
             res_rd.addr.eq(self.res_addr),
             self.res_data.eq(res_rd.data),
             res_wr.addr.eq(eval_idx),
-            res_wr.data.eq(Cat(ev.crashes, ev.loops, ev.distance)),
+            res_wr.data.crashes.eq(ev.crashes),
+            res_wr.data.loops.eq(ev.loops),
+            res_wr.data.distance.eq(ev.distance),
             res_wr.en.eq(ev.done & ~idle),
         ]
 
@@ -235,9 +217,9 @@ class SystemTop(wiring.Component):
 # -- host side: the board protocol, for any simulator ------------------------------------------------
 
 SYSTEM_INPUTS = (
-    "ctl_row_addr", "ctl_row_data", "ctl_row_we", "ctl_commit", "ctl_x", "ctl_reflex_en",
-    "ev_model_state", "ev_model_motion", "ev_model_next", "ev_model_crash", "ev_model_valid",
-    "ev_model_we", "ev_state_value", "ev_state_we", "ev_clear", "ev_reflex_en",
+    "ctl_row__addr", "ctl_row__data", "ctl_row__we", "ctl_commit", "ctl_x", "ctl_reflex_en",
+    "ev_model__state", "ev_model__motion", "ev_model__next", "ev_model__crash", "ev_model__valid",
+    "ev_model__we", "ev_state_value", "ev_state_we", "ev_clear", "ev_reflex_en",
     "pop_addr", "pop_data", "pop_we", "pop_size", "go", "res_addr",
 )
 
@@ -303,17 +285,7 @@ class SystemHost:
 
     async def load(self, rows) -> None:
         """Download one controller: 50 row writes, the commit with the last (50 cycles)."""
-        pins = self.pins
-        last = len(rows) - 1
-        for r, word in enumerate(rows):
-            pins.set("ctl_row_addr", r)
-            pins.set("ctl_row_data", int(word))
-            pins.set("ctl_row_we", 1)
-            pins.set("ctl_commit", int(r == last))
-            await pins.tick()
-        pins.set("ctl_row_we", 0)
-        pins.set("ctl_commit", 0)
-        self.controller_cycles += len(rows)
+        self.controller_cycles += await write_rows(self.pins, "ctl_row", rows, strobe="ctl_commit")
 
     async def motion(self, state: int) -> int:
         """Present the sensor bits for one cycle and read the registered motion (1 cycle)."""
@@ -329,16 +301,16 @@ class SystemHost:
         if not pins.get("ev_ready"):
             raise RuntimeError("the evaluator board is busy: a world-model write would be ignored")
         self.model.observe(int(state), int(motion), int(next_state), bool(crashed))
-        pins.set("ev_model_state", int(state))
-        pins.set("ev_model_motion", int(motion))
-        pins.set("ev_model_next", int(self.model.next_state[state, motion]))
-        pins.set("ev_model_crash", int(self.model.crash[state, motion]))
-        pins.set("ev_model_valid", 1)
-        pins.set("ev_model_we", 1)
+        pins.set("ev_model__state", int(state))
+        pins.set("ev_model__motion", int(motion))
+        pins.set("ev_model__next", int(self.model.next_state[state, motion]))
+        pins.set("ev_model__crash", int(self.model.crash[state, motion]))
+        pins.set("ev_model__valid", 1)
+        pins.set("ev_model__we", 1)
         pins.set("ev_state_value", int(state))
         pins.set("ev_state_we", 1)
         await pins.tick()
-        pins.set("ev_model_we", 0)
+        pins.set("ev_model__we", 0)
         pins.set("ev_state_value", int(next_state))
         await pins.tick()
         pins.set("ev_state_we", 0)
@@ -367,18 +339,18 @@ class SystemHost:
         for i in range(max(len(entries), len(states))):
             if i < len(entries):
                 state, motion, next_state, crash = (int(v) for v in entries[i])
-                pins.set("ev_model_state", state)
-                pins.set("ev_model_motion", motion)
-                pins.set("ev_model_next", next_state)
-                pins.set("ev_model_crash", crash)
-                pins.set("ev_model_valid", 1)
-            pins.set("ev_model_we", int(i < len(entries)))
+                pins.set("ev_model__state", state)
+                pins.set("ev_model__motion", motion)
+                pins.set("ev_model__next", next_state)
+                pins.set("ev_model__crash", crash)
+                pins.set("ev_model__valid", 1)
+            pins.set("ev_model__we", int(i < len(entries)))
             if i < len(states):
                 pins.set("ev_state_value", int(states[i]))
             pins.set("ev_state_we", int(i < len(states)))
             await pins.tick()
             self.transfer_cycles += 1
-        pins.set("ev_model_we", 0)
+        pins.set("ev_model__we", 0)
         pins.set("ev_state_we", 0)
         self.model = model.copy()
 

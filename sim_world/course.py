@@ -1,7 +1,8 @@
 """Drive a controller (a 256-entry motion table) through the course of 64 legs (SPEC sections 5, 7).
 
 The robot starts at the arena's start pose. Each time it reaches the target it is relocated: after
-the k-th target (k = 1, 2, ...) to ``arena.positions[(k - 1) % 64]``. The run stops at the
+the k-th target (k = 1, 2, ...) to ``arena.positions[(k - 1) % 64]`` (``Course``, the one place this
+rule is written: the on-line and off-line runs, the baseline and the Gymnasium env use it). The run stops at the
 ``n_targets``-th target, at a crash (when ``stop_on_crash``), or when a leg exceeds
 ``max_leg_steps`` interactions (a time-out: the robot is stuck in a loop).
 """
@@ -12,7 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from sim_world.arena import N_POSITIONS
+from sim_world.arena import N_POSITIONS, Arena
 from sim_world.world import World
 
 # The leg step limit. The reactive baseline (sim_world.baseline) needs at most ~170 interactions
@@ -21,6 +22,41 @@ from sim_world.world import World
 # leg, while a robot caught in a loop is stopped before it wastes much (SPEC section 11: leg
 # time-outs dominate the interaction count).
 DEFAULT_MAX_LEG_STEPS = 500
+
+
+@dataclass(frozen=True)
+class Course:
+    """The relocation course of SPEC section 5: the arena's positions, always in the same order.
+
+    After the k-th target (k = 1, 2, ...) the robot goes to position ``(first + k - 1) % n_positions``;
+    ``first`` = 0 for a lifetime that starts at the arena's start pose, i for one that starts at
+    ``positions[i - 1]`` (the next relocation is then ``positions[i]``).
+    """
+
+    n_positions: int = N_POSITIONS
+    first: int = 0
+
+    def __post_init__(self):
+        if self.n_positions < 1:
+            raise ValueError(f"a course needs at least one position, got n_positions={self.n_positions!r}")
+        if not 0 <= self.first < self.n_positions:
+            raise ValueError(f"first must be in 0..{self.n_positions - 1}, got {self.first!r}")
+
+    @classmethod
+    def of(cls, arena_or_world: Arena | World, first: int = 0) -> "Course":
+        """The course of an arena (or of a world's arena)."""
+        arena = getattr(arena_or_world, "arena", arena_or_world)
+        return cls(len(arena.positions), first % len(arena.positions))
+
+    def position_after(self, target: int) -> int:
+        """Index of the relocation position after the ``target``-th target (1-based)."""
+        if target < 1:
+            raise ValueError(f"target counts from 1, got {target!r}")
+        return (self.first + target - 1) % self.n_positions
+
+    def relocate(self, world: World, target: int) -> int:
+        """Relocate ``world`` after its ``target``-th target; returns the new world state."""
+        return world.relocate(self.position_after(target))
 
 
 @dataclass
@@ -58,16 +94,15 @@ def run_course(
         raise ValueError(f"table must hold 256 motions in 0..7, got shape {np.shape(table)}")
     if start == "start":
         world.reset_to_start()
-        next_pos = 0
+        course = Course.of(world)
     elif start == "here":
-        next_pos = 0
+        course = Course.of(world)
     else:
         world.relocate(int(start))
-        next_pos = int(start) + 1
+        course = Course.of(world, first=int(start) + 1)
     res = CourseResult()
     states, transitions = res.states, res.transitions
     traj = res.trajectory
-    n_positions = len(world.arena.positions)
     step = world.step
     s = world.state()
     states.add(s)
@@ -101,8 +136,7 @@ def run_course(
             leg = 0
             if res.targets_reached >= n_targets:
                 break
-            s2 = world.relocate(next_pos % n_positions)
-            next_pos += 1
+            s2 = course.relocate(world, res.targets_reached)
             states.add(s2)
             if record:
                 x, y, h = world.pose

@@ -29,7 +29,7 @@ from gymnasium import spaces
 
 from ga.motions import N_MOTIONS, N_STATES
 from sim_world.arena import N_POSITIONS, Arena, load_arena
-from sim_world.course import DEFAULT_MAX_LEG_STEPS
+from sim_world.course import DEFAULT_MAX_LEG_STEPS, Course
 from sim_world.world import Noise, World
 
 TARGET_REWARD = 10.0
@@ -101,7 +101,7 @@ class EHWTrackingEnv(gym.Env):
             if self._targets >= self.n_targets:
                 terminated = True
             else:
-                self.world.relocate((self._targets - 1) % len(self.arena.positions))
+                Course.of(self.arena).relocate(self.world, self._targets)
         else:
             reward = PROGRESS_SCALE * (before - out.distance_mm) / 1000.0
         reward -= STEP_COST

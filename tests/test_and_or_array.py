@@ -157,23 +157,6 @@ def test_generated_verilog_has_exactly_the_contract_ports(tmp_path):
 
 
 @pytest.mark.cocotb
-def test_and_or_array_cocotb(tmp_path):
-    """cocotb on the generated Verilog in Icarus: all 256 inputs of every shared vector."""
-    from cosim.cocotb_run import run_cocotb
-    from hdl.generate import write_verilog
-
-    src = write_verilog("and_or_array", tmp_path)
-    n_tests, _ = run_cocotb(
-        sources=[src],
-        toplevel="and_or_array",
-        test_module="tb_and_or_array",
-        test_dir=TB_DIR,
-        build_name="and_or_array",
-    )
-    assert n_tests >= 1
-
-
-@pytest.mark.cocotb
 def test_plain_verilog_testbench_instantiates_by_port_names(tmp_path):
     """An outside Verilog testbench (no cocotb) instantiates ``and_or_array`` by the contract
     port names and sweeps all 256 inputs of a few shared vectors in Icarus."""

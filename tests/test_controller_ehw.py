@@ -23,6 +23,7 @@ from ga.genome import N_ROWS
 from ga.motions import N_STATES, REFLEX_STATES, REFLEX_TABLE
 from ga.truth_table import truth_tables
 from hdl.controller_ehw import ControllerEHW
+from hdl.ports import AmaranthPins, RowWriteSignature, write_rows
 
 TB_DIR = Path(__file__).resolve().parent / "cocotb_tb"
 STATES = np.arange(N_STATES)
@@ -33,16 +34,10 @@ class Bench:
 
     def __init__(self, ctx, dut: ControllerEHW, domain: ClockDomain):
         self.ctx, self.dut, self.domain = ctx, dut, domain
+        self.pins = AmaranthPins(dut, ctx)
 
     async def write_row(self, addr: int, word: int, *, commit: bool = False):
-        ctx, dut = self.ctx, self.dut
-        ctx.set(dut.row_addr, addr)
-        ctx.set(dut.row_data, int(word))
-        ctx.set(dut.row_we, 1)
-        ctx.set(dut.commit, int(commit))
-        await ctx.tick()
-        ctx.set(dut.row_we, 0)
-        ctx.set(dut.commit, 0)
+        await write_rows(self.pins, "row", [word], strobe="commit" if commit else None, first_row=addr)
 
     async def commit(self):
         self.ctx.set(self.dut.commit, 1)
@@ -50,8 +45,7 @@ class Bench:
         self.ctx.set(self.dut.commit, 0)
 
     async def load(self, rows, *, commit: bool = True):
-        for r, word in enumerate(rows):
-            await self.write_row(r, word)
+        await write_rows(self.pins, "row", rows)
         if commit:
             await self.commit()
 
@@ -255,7 +249,7 @@ def test_out_of_range_row_addresses_are_ignored():
 
     async def body(bench):
         await bench.load(genome)
-        for addr in range(N_ROWS, 1 << len(bench.dut.row_addr)):
+        for addr in range(N_ROWS, 1 << len(bench.dut.row.addr)):
             await bench.write_row(addr, (1 << 19) - 1 if addr % 2 else 0b111 << 16)
         await bench.commit()
         seen["table"] = await bench.table()
@@ -266,10 +260,11 @@ def test_out_of_range_row_addresses_are_ignored():
 
 def test_ports_and_constructor():
     dut = ControllerEHW()
-    widths = {name: len(getattr(dut, name)) for name in
-              ("row_addr", "row_data", "row_we", "commit", "x", "reflex_en", "motion")}
-    assert widths == dict(row_addr=6, row_data=19, row_we=1, commit=1, x=8, reflex_en=1, motion=3)
-    assert len(ControllerEHW(k=4).row_addr) == 2
+    widths = {name: len(getattr(dut, name)) for name in ("commit", "x", "reflex_en", "motion")}
+    assert widths == dict(commit=1, x=8, reflex_en=1, motion=3)
+    assert dut.signature.members["row"].signature == RowWriteSignature(N_ROWS).flip()
+    assert [len(dut.row.addr), len(dut.row.data), len(dut.row.we)] == [6, 19, 1]
+    assert len(ControllerEHW(k=4).row.addr) == 2
     for bad in (0, -3, 2.5, "50"):
         with pytest.raises((TypeError, ValueError), match=re.escape(f"k must be a positive integer, got {bad!r}")):
             ControllerEHW(k=bad)
@@ -281,25 +276,10 @@ def test_generated_verilog_ports(tmp_path):
     text = write_verilog("controller_ehw", tmp_path).read_text()
     header = re.search(r"^module controller_ehw\((.*?)\);", text, re.S | re.M).group(1)
     assert sorted(p.strip() for p in header.split(",")) == sorted(
-        ["clk", "rst", "row_addr", "row_data", "row_we", "commit", "x", "reflex_en", "motion"]
+        ["clk", "rst", "row__addr", "row__data", "row__we", "commit", "x", "reflex_en", "motion"]
     )
-    for decl in ("input [5:0] row_addr;", "input [18:0] row_data;", "input row_we;", "input commit;",
+    for decl in ("input [5:0] row__addr;", "input [18:0] row__data;", "input row__we;", "input commit;",
                  "input [7:0] x;", "input reflex_en;", "output [2:0] motion;", "input clk;", "input rst;"):
         assert decl in text, decl
 
 
-@pytest.mark.cocotb
-def test_controller_ehw_cocotb(tmp_path):
-    """cocotb on the generated Verilog in Icarus (tests/cocotb_tb/tb_controller_ehw.py)."""
-    from cosim.cocotb_run import run_cocotb
-    from hdl.generate import write_verilog
-
-    src = write_verilog("controller_ehw", tmp_path)
-    n_tests, _ = run_cocotb(
-        sources=[src],
-        toplevel="controller_ehw",
-        test_module="tb_controller_ehw",
-        test_dir=TB_DIR,
-        build_name="controller_ehw",
-    )
-    assert n_tests >= 3

@@ -345,3 +345,35 @@ def test_the_disc_obstacle_is_solid():
     crashed = [world.step(0).crashed for _ in range(12)]
     assert crashed[:3] == [False] * 3 and crashed[-1]
     assert cx - world.pose[0] >= r + ROBOT_RADIUS_MM - 1e-6
+
+
+def test_course_relocation_rule():
+    """SPEC section 5: after the k-th target, position (first + k - 1) mod n, in that order."""
+    import pytest
+
+    from sim_world.arena import N_POSITIONS, load_arena
+    from sim_world.course import Course
+
+    course = Course.of(load_arena("default"))
+    assert course.n_positions == N_POSITIONS
+    assert [course.position_after(k) for k in (1, 2, 64, 65)] == [0, 1, 63, 0]
+    later = Course.of(load_arena("default"), first=10)
+    assert [later.position_after(k) for k in (1, 54, 55)] == [10, 63, 0]
+    with pytest.raises(ValueError, match="target counts from 1"):
+        course.position_after(0)
+    with pytest.raises(ValueError, match="first must be"):
+        Course(4, first=4)
+
+
+def test_course_run_from_a_position_relocates_to_the_next_one():
+    from sim_world.arena import load_arena
+    from sim_world.baseline import baseline_table
+    from sim_world.course import run_course
+
+    world = World(load_arena("default"), noise=None)
+    res = run_course(world, baseline_table(), 500, n_targets=2, start=5, record=True)
+    assert res.targets_reached == 2
+    relocations = [i for i, p in enumerate(res.trajectory) if p[3] == "relocate"]
+    assert len(relocations) == 1
+    x, y, _, _ = res.trajectory[relocations[0]]
+    assert (x, y) == pytest.approx(tuple(world.arena.positions[6][:2]))

@@ -26,6 +26,7 @@ import vectors  # noqa: E402
 from ga.genome import N_ROWS  # noqa: E402
 from ga.motions import N_STATES, REFLEX_TABLE  # noqa: E402
 from ga.truth_table import truth_tables  # noqa: E402
+from hdl.ports import CocotbPins, write_rows  # noqa: E402
 
 SEED = int(os.environ.get("EHW_TB_SEED", "11"))
 
@@ -36,8 +37,9 @@ class Testbench:
     def __init__(self, dut):
         self.dut = dut
         Clock(dut.clk, 10, unit="ns").start(start_high=False)
-        for name in ("row_addr", "row_data", "row_we", "commit", "x", "reflex_en"):
-            getattr(dut, name).value = 0
+        self.pins = CocotbPins(dut)
+        for name in ("row__addr", "row__data", "row__we", "commit", "x", "reflex_en"):
+            self.pins.set(name, 0)
         dut.rst.value = 0
 
     async def cycle(self) -> int:
@@ -51,12 +53,8 @@ class Testbench:
         self.dut.rst.value = 0
 
     async def write_row(self, addr: int, word: int, commit: bool = False):
-        dut = self.dut
-        dut.row_addr.value, dut.row_data.value, dut.row_we.value = addr, int(word), 1
-        dut.commit.value = int(commit)
-        motion = await self.cycle()
-        dut.row_we.value, dut.commit.value = 0, 0
-        return motion
+        await write_rows(self.pins, "row", [word], strobe="commit" if commit else None, first_row=addr)
+        return self.dut.motion.value.to_unsigned()
 
     async def commit(self):
         self.dut.commit.value = 1
@@ -64,8 +62,7 @@ class Testbench:
         self.dut.commit.value = 0
 
     async def load(self, rows, commit: bool = True):
-        for r, word in enumerate(rows):
-            await self.write_row(r, word)
+        await write_rows(self.pins, "row", rows)
         if commit:
             await self.commit()
 

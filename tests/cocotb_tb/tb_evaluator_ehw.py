@@ -25,12 +25,13 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # tests/, for t
 
 from ga.evaluator import evaluate_population  # noqa: E402
 from ga.world_model import WorldModel  # noqa: E402
+from hdl.ports import CocotbPins, write_rows  # noqa: E402
 from test_evaluator_cases import cases, constant_rows, random_model, specific_rows  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-INPUTS = ("row_addr", "row_data", "row_we", "model_state", "model_motion", "model_next", "model_crash",
-          "model_valid", "model_we", "state_value", "state_we", "clear", "reflex_en", "start")
+INPUTS = ("row__addr", "row__data", "row__we", "model__state", "model__motion", "model__next",
+          "model__crash", "model__valid", "model__we", "state_value", "state_we", "clear", "reflex_en", "start")
 
 
 def reference_counts(pop, model, reflex):
@@ -45,8 +46,9 @@ class Testbench:
         self.dut = dut
         self.cycle = 0
         Clock(dut.clk, 10, unit="ns").start(start_high=False)
+        self.pins = CocotbPins(dut)
         for name in INPUTS:
-            getattr(dut, name).value = 0
+            self.pins.set(name, 0)
         dut.rst.value = 0
 
     def get(self, name: str) -> int:
@@ -72,10 +74,9 @@ class Testbench:
         assert edges == 2049 and self.get("n_states") == 0, edges
 
     def set_entry(self, state, motion, next_state, crash, valid=1):
-        dut = self.dut
-        dut.model_state.value, dut.model_motion.value = int(state), int(motion)
-        dut.model_next.value, dut.model_crash.value = int(next_state), int(crash)
-        dut.model_valid.value, dut.model_we.value = int(valid), 1
+        for name, value in zip(("state", "motion", "next", "crash", "valid", "we"),
+                               (state, motion, next_state, crash, valid, 1)):
+            self.pins.set(f"model__{name}", int(value))
 
     async def clear(self):
         self.dut.clear.value = 1
@@ -94,7 +95,8 @@ class Testbench:
             if i < len(states):
                 dut.state_value.value, dut.state_we.value = int(states[i]), 1
             await self.tick()
-            dut.model_we.value, dut.state_we.value = 0, 0
+            self.pins.set("model__we", 0)
+            self.pins.set("state_we", 0)
 
     def results(self):
         return (self.get("crashes"), self.get("loops"), self.get("distance")), self.get("cycles")
@@ -104,11 +106,7 @@ class Testbench:
         dut = self.dut
         dut.reflex_en.value = int(reflex)
         first = self.cycle
-        for r, word in enumerate(rows):
-            dut.row_addr.value, dut.row_data.value, dut.row_we.value = r, int(word), 1
-            dut.start.value = int(r == len(rows) - 1)
-            await self.tick()
-        dut.row_we.value, dut.start.value = 0, 0
+        self.cycle += await write_rows(self.pins, "row", rows, strobe="start")
         while not self.get("done"):
             assert self.get("busy")
             await self.tick()
@@ -151,8 +149,9 @@ async def overlapped_loading(dut):
     while len(counts) < len(pop):
         write = loading < len(pop) and row < len(pop[loading])
         if write:
-            dut.row_addr.value, dut.row_data.value = row, int(pop[loading][row])
-        dut.row_we.value = int(write)
+            tb.pins.set("row__addr", row)
+            tb.pins.set("row__data", int(pop[loading][row]))
+        tb.pins.set("row__we", int(write))
         start = loading < len(pop) and row >= len(pop[loading]) - 1 and tb.get("ready")
         dut.start.value = int(start)
         await tb.tick()
@@ -163,7 +162,8 @@ async def overlapped_loading(dut):
         if tb.get("done"):
             counts.append(tb.results()[0])
             assert tb.results()[1] == n + 1
-    dut.row_we.value, dut.start.value = 0, 0
+    tb.pins.set("row__we", 0)
+    dut.start.value = 0
     assert counts == reference_counts(pop, model, True)
     total = tb.cycle - first
     assert total <= 50 + len(pop) * (n + 2), total
@@ -184,7 +184,8 @@ async def idle_writes_count_and_busy_start_is_ignored(dut):
         tb.set_entry(s, 0, model.next_state[s, 0], model.crash[s, 0])
         dut.state_value.value, dut.state_we.value = s2, 1
         await tb.tick()
-        dut.model_we.value, dut.state_we.value = 0, 0
+        tb.pins.set("model__we", 0)
+        dut.state_we.value = 0
         counts = (await tb.evaluate(rows, reflex=False))[0]
         assert counts == reference_counts(rows[None], model, False)[0], (s, s2, crash)
     assert counts == (1, 0, 50)
@@ -197,11 +198,8 @@ async def idle_writes_count_and_busy_start_is_ignored(dut):
     await tb.write_model(model)
     n = model.n_states
     dut.reflex_en.value = 1
-    for r, word in enumerate(rows):
-        dut.row_addr.value, dut.row_data.value, dut.row_we.value = r, int(word), 1
-        dut.start.value = int(r == len(rows) - 1)
-        await tb.tick()
-    dut.row_we.value = 0
+    tb.cycle += await write_rows(tb.pins, "row", rows, strobe="start")
+    dut.start.value = 1  # held high while busy: must be ignored
     victim = int(model.states[0])
     busy_edges = 0
     while not tb.get("done"):
@@ -209,7 +207,8 @@ async def idle_writes_count_and_busy_start_is_ignored(dut):
         tb.set_entry(victim, busy_edges % 8, victim, 1)  # start still high
         await tb.tick()
         busy_edges += 1
-    dut.start.value, dut.model_we.value = 0, 0
+    dut.start.value = 0
+    tb.pins.set("model__we", 0)
     assert busy_edges == n + 1
     counts, cycles = tb.results()
     assert counts == reference_counts(rows[None], model, True)[0] and cycles == n + 1
