@@ -35,8 +35,7 @@ from importlib import import_module, metadata
 from pathlib import Path
 from typing import Callable
 
-from amaranth.hdl import Cat, Elaboratable, Module, Signal
-from amaranth.lib.wiring import In
+from amaranth.hdl import Elaboratable, Module
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 BUILD_ROOT = Path("build/fpga")
@@ -65,47 +64,19 @@ class FpgaError(Exception):
     """A build that cannot run or whose reports cannot be read (one ``error:`` line)."""
 
 
-class PinHarness(Elaboratable):
-    """TEMPORARY (until hdl.link lands): a board behind a trivial pin harness, every input fed
-    from a shift register on ``rx`` and every output XOR-reduced into ``tx``, so that nothing is
-    optimised away."""
-
-    def __init__(self, board):
-        self.board = board
-        self.rx, self.tx = Signal(), Signal()
-
-    def elaborate(self, platform):
-        m = Module()
-        board = m.submodules.board = self.board
-        ins, outs = [], []
-        for _path, member, value in board.signature.flatten(board):
-            (ins if member.flow == In else outs).append(value)
-        width = sum(len(v) for v in ins)
-        chain = Signal(width)
-        m.d.sync += chain.eq(Cat(self.rx, chain[:-1]))
-        at = 0
-        for v in ins:
-            m.d.comb += v.eq(chain[at:at + len(v)])
-            at += len(v)
-        tx = Signal()
-        m.d.sync += tx.eq(Cat(*outs).xor())
-        m.d.comb += self.tx.eq(tx)
-        return m
-
-
 def _controller_top(clk_freq_hz: float):
-    from hdl.controller_ehw import ControllerEHW
-    return PinHarness(ControllerEHW())
+    from hdl.link import ControllerLinkTop
+    return ControllerLinkTop(clk_freq_hz=clk_freq_hz)
 
 
 def _evaluator_top(clk_freq_hz: float):
-    from hdl.evaluator_ehw import EvaluatorEHW
-    return PinHarness(EvaluatorEHW(double_buffer=False))
+    from hdl.link import EvaluatorLinkTop
+    return EvaluatorLinkTop(clk_freq_hz=clk_freq_hz, double_buffer=False)
 
 
 def _system_top(clk_freq_hz: float):
-    from hdl.system_top import SystemTop
-    return PinHarness(SystemTop())
+    from hdl.link import SystemLinkTop
+    return SystemLinkTop(clk_freq_hz=clk_freq_hz)
 
 
 @dataclass(frozen=True)
