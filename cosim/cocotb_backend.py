@@ -33,7 +33,7 @@ import os
 from pathlib import Path
 
 from cosim.amaranth_backend import SAMPLE_ENV, BoardLog, HDLControllerBoard, HDLEvaluatorBoard
-from cosim.hardware_time import clock_hz_default, hardware_line
+from cosim.hardware_time import hardware_line
 from cosim.boards import register_backend
 from hdl.ports import CocotbPins
 
@@ -179,8 +179,9 @@ def run_online_cocotb(config, out: Path | str, *, resume: bool = False, plots: b
     # one folder per build: runs may overlap
     source = write_system_verilog(SIM_BUILD / f"{build_name}_verilog", distance_rule=rule)
     options = {"out": str(out), "resume": resume, "plots": plots, "progress": progress}
-    env = {CONFIG_ENV: json.dumps(config.to_dict()), OPTIONS_ENV: json.dumps(options),
-           "EHW_CLOCK_HZ": str(clock_hz if clock_hz is not None else clock_hz_default())}
+    env = {CONFIG_ENV: json.dumps(config.to_dict()), OPTIONS_ENV: json.dumps(options)}
+    if clock_hz is not None:  # else the run in the simulator finds the measured clock itself
+        env["EHW_CLOCK_HZ"] = str(clock_hz)
     if sample is not None:  # spot-check mode (cosim.amaranth_backend.HDLEvaluatorBoard)
         env[SAMPLE_ENV] = str(int(sample))
     run_cocotb(
