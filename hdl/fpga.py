@@ -308,19 +308,29 @@ def main(argv=None) -> int:
         print(f"error: unknown target(s) {', '.join(map(repr, unknown))}; known: {', '.join(TARGETS)}",
               file=sys.stderr)
         return 2
-    failed_timing = []
+    failed_timing, failed = [], []
     try:
-        for name in args.targets or list(TARGETS):
-            print(f"== {name}: building (Yosys, nextpnr: minutes)", flush=True)
-            entry = build(TARGETS[name], args.out, seed=args.seed)
-            write_results(args.results, name, entry)
-            print(timing_line(name, entry), flush=True)
-            if not entry["timing_met"]:
-                failed_timing.append(name)
+        env = tool_env()
     except FpgaError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    print(f"wrote {args.results}")
+    for name in args.targets or list(TARGETS):
+        print(f"== {name}: building (Yosys, nextpnr: minutes)", flush=True)
+        try:
+            entry = build(TARGETS[name], args.out, env=env, seed=args.seed)
+        except FpgaError as exc:  # the next target may still build
+            print(f"error: {exc}", file=sys.stderr, flush=True)
+            failed.append(name)
+            continue
+        write_results(args.results, name, entry)
+        print(timing_line(name, entry), flush=True)
+        if not entry["timing_met"]:
+            failed_timing.append(name)
+    if len(failed) < len(args.targets or TARGETS):
+        print(f"wrote {args.results}")
+    if failed:
+        print(f"error: {', '.join(failed)} did not build (see above)", file=sys.stderr)
+        return 2
     if failed_timing:
         print(f"error: {', '.join(failed_timing)} fail timing at the board clock (see above)", file=sys.stderr)
         return 1
