@@ -19,13 +19,19 @@ SEED   ?= 1
 SEEDS  ?= 5
 JOBS   ?= 2
 ARGS   ?=
+# BACKEND=serial: the boards' serial ports (PORT: a ULX3S system board, or with PORT2 the
+# controller and evaluator iCEBreakers) and the baud (default 115200; BACKEND=uart: the fastest
+# the simulated clock allows).
+PORT   ?=
+PORT2  ?=
+BAUD   ?=
 
 .PHONY: all test sim offline compare verilog bitstream bench arena baseline hdl-tools venv clean distclean help
 
 all: test
 
 help:
-	@echo "make sim       on-line model-based experiment (BACKEND=reference|amaranth|cocotb, SIM=verilator|icarus, SEED=1, HDL_SAMPLE)"
+	@echo "make sim       on-line model-based experiment (BACKEND=reference|amaranth|cocotb|serial|uart, SIM=verilator|icarus, SEED=1, HDL_SAMPLE; serial: PORT=, PORT2=, BAUD=)"
 	@echo "make test      the whole test suite (creates .venv, installs iverilog if missing)"
 	@echo "make offline   off-line model-free experiment"
 	@echo "make compare   both methods over SEEDS seeds -> results/compare.md"
@@ -74,7 +80,8 @@ test: $(STAMP) hdl-tools
 	$(PY) -m pytest -n $(JOBS) $(ARGS)
 
 sim: $(STAMP) hdl-tools
-	EHW_SIM=$(SIM) EHW_HDL_SAMPLE=$(HDL_SAMPLE) $(PY) -m cosim.online --backend $(BACKEND) --seed $(SEED) $(ARGS)
+	EHW_SIM=$(SIM) EHW_HDL_SAMPLE=$(HDL_SAMPLE) EHW_PORT=$(PORT) EHW_PORT2=$(PORT2) EHW_BAUD=$(BAUD) \
+	  $(PY) -m cosim.online --backend $(BACKEND) --seed $(SEED) $(ARGS)
 
 offline: $(STAMP)
 	$(PY) -m cosim.offline --seed $(SEED) $(ARGS)

@@ -4,7 +4,10 @@ The loops talk only to these interfaces; a backend is chosen by name:
 
 - ``reference``: NumPy models (``ga.truth_table``, ``ga.world_model``, ``ga.evaluator``), fast;
 - ``amaranth``: the Amaranth components in Amaranth's simulator;
-- ``cocotb``: the generated Verilog in Icarus, driven from inside a cocotb test.
+- ``cocotb``: the generated Verilog in Icarus, driven from inside a cocotb test;
+- ``serial``: real boards behind the UART host link (``cosim.link_boards``);
+- ``uart``: the board top with its UART in Verilator, reached over a simulated serial line by
+  the same host code (``cosim.uart_backend``).
 
 The same seed gives the same controllers, trajectory and counts in every backend; the HDL
 backends also count clock cycles.
@@ -18,7 +21,7 @@ from typing import Protocol
 
 import numpy as np
 
-BACKENDS = ("reference", "amaranth", "cocotb")
+BACKENDS = ("reference", "amaranth", "cocotb", "serial", "uart")
 
 
 @dataclass(frozen=True)
@@ -169,7 +172,8 @@ def make_boards(backend: str = "reference", *, reflex: bool = True, **options):
         # reference path free of Amaranth/cocotb imports.
         import importlib
 
-        module = {"amaranth": "cosim.amaranth_backend", "cocotb": "cosim.cocotb_backend"}[backend]
+        module = {"amaranth": "cosim.amaranth_backend", "cocotb": "cosim.cocotb_backend",
+                  "serial": "cosim.link_boards", "uart": "cosim.uart_backend"}[backend]
         try:
             importlib.import_module(module)
         except ModuleNotFoundError as error:

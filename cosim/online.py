@@ -1085,6 +1085,10 @@ def main(argv=None) -> int:
         from cosim.cocotb_backend import main_from_args
 
         return main_from_args(args, config)
+    if args.backend in ("serial", "uart"):  # the host link: cosim.link_boards launches both
+        from cosim.link_boards import main_from_args
+
+        return main_from_args(args, config)
     try:
         run = make_run(config, args.backend, args.out, resume=args.resume, progress=not args.no_progress)
     except CheckpointError as exc:

@@ -6,11 +6,11 @@ re-typed on the host side.
 
 Frame (both directions; docs/host_link.md)::
 
-    SYNC | command | status | length | payload[length] | crc[15:8] | crc[7:0]
+    SYNC | command | status | tag | length | payload[length] | crc[15:8] | crc[7:0]
 
-- ``SYNC`` = 0xA5 starts a frame; the three header bytes are :class:`FrameHeader` (little-endian,
-  ``command`` first). A request carries status 0; a reply echoes the request's command with a
-  :class:`Status`.
+- ``SYNC`` = 0xA5 starts a frame; the four header bytes are :class:`FrameHeader` (little-endian,
+  ``command`` first). A request carries status 0; a reply echoes the request's command and tag
+  with a :class:`Status`.
 - The CRC is :data:`LINK_CRC` (CRC-16/IBM-3740, "CCITT-FALSE": poly 0x1021, init 0xFFFF) over the
   header and payload, sent high byte first, so that the CRC register over the whole frame after
   ``SYNC`` ends at the algorithm's residue (0): the gateware checks ``match_detected`` of
@@ -46,8 +46,9 @@ from amaranth.lib.wiring import In, Out
 
 from ga.genome import GENOME_BITS, N_ROWS, ROW_BITS
 from ga.motions import N_INPUTS, N_OUTPUTS
-from hdl.controller_ehw import ControllerEHW, row_addr_bits
-from hdl.evaluator_ehw import COUNT_BITS, DISTANCE_BITS, EvaluatorEHW
+from hdl.controller_ehw import ControllerEHW
+from hdl.evaluator_ehw import EvaluatorEHW
+from hdl.ports import RESULT_LAYOUT, RowWriteSignature
 from hdl.uart import DEFAULT_BAUD, UART
 
 SYNC = 0xA5
@@ -90,10 +91,11 @@ class Status(enum.Enum, shape=8):
 
 
 class FrameHeader(data.Struct):
-    """The three bytes after ``SYNC``, in both directions."""
+    """The four bytes after ``SYNC``, in both directions."""
 
     command: 8
     status: 8
+    tag: 8      # chosen by the host per request, echoed in the reply: a late reply is recognised
     length: 8
 
 
@@ -116,8 +118,9 @@ LOAD_GENOME_REQUEST = data.StructLayout({"index": 16})  # then the genome bytes
 EVALUATE_REQUEST = data.StructLayout({"count": 16})
 EVALUATE_REPLY = data.StructLayout({"cycles": 32})
 READ_RESULTS_REQUEST = data.StructLayout({"first": 16, "count": 8})
-RESULT_REPLY = data.StructLayout({"crashes": COUNT_BITS, "loops": COUNT_BITS,
-                                  "distance": DISTANCE_BITS, "_pad": 6})
+# one controller's result: the evaluator's result word (hdl.ports.RESULT_LAYOUT) padded to bytes
+RESULT_REPLY = data.StructLayout({"result": RESULT_LAYOUT,
+                                  "_pad": -data.Layout.cast(RESULT_LAYOUT).size % 8})
 IDENTIFY_REPLY = data.StructLayout({
     "design": 8 * NAME_BYTES,   # ASCII, NUL-padded
     "layout_version": 8,        # GENOME_LAYOUT_VERSION
@@ -386,8 +389,8 @@ class RowAssembler(wiring.Component):
         Start a new genome at row 0.
     byte : In(8), valid : In(1)
         The next genome byte.
-    row_addr : Out(6), row_data : Out(19), row_we : Out(1)
-        A row-write port (as the boards'): one write whenever 19 bits are in (registered).
+    row : Out(RowWriteSignature(50))
+        The boards' row-write port: one write whenever 19 bits are in (registered).
     """
 
     def __init__(self):
@@ -395,9 +398,7 @@ class RowAssembler(wiring.Component):
             "restart": In(1),
             "byte": In(8),
             "valid": In(1),
-            "row_addr": Out(row_addr_bits(N_ROWS)),
-            "row_data": Out(ROW_BITS),
-            "row_we": Out(1),
+            "row": Out(RowWriteSignature(N_ROWS)),
         })
 
     def elaborate(self, platform):
@@ -407,13 +408,13 @@ class RowAssembler(wiring.Component):
         row = Signal(range(N_ROWS + 1))
         merged = Signal(ROW_BITS + 8)
         m.d.comb += merged.eq(pending | (self.byte << have))
-        m.d.sync += self.row_we.eq(0)
+        m.d.sync += self.row.we.eq(0)
         with m.If(self.restart):
             m.d.sync += [pending.eq(0), have.eq(0), row.eq(0)]
         with m.Elif(self.valid & (row < N_ROWS)):
             with m.If(have + 8 >= ROW_BITS):
-                m.d.sync += [self.row_addr.eq(row), self.row_data.eq(merged[:ROW_BITS]),
-                             self.row_we.eq(1), pending.eq(merged[ROW_BITS:]),
+                m.d.sync += [self.row.addr.eq(row), self.row.data.eq(merged[:ROW_BITS]),
+                             self.row.we.eq(1), pending.eq(merged[ROW_BITS:]),
                              have.eq(have + 8 - ROW_BITS), row.eq(row + 1)]
             with m.Else():
                 m.d.sync += [pending.eq(merged), have.eq(have + 8)]
@@ -436,6 +437,7 @@ class _Link:
         wiring.connect(m, self.snd.data, self.uart.tx_data)
 
         self.command = Signal(8)   # the command being answered
+        self.tag = Signal(8)
         self.status = Signal(8)
         self.length = Signal(8)    # reply payload bytes
         self.reply = Signal(8 * 32)  # reply payload (byte i = bits 8i..8i+7) unless a top overrides
@@ -457,14 +459,20 @@ class _Link:
             self.asm.byte.eq(rcv.byte),
             self.asm.valid.eq(rcv.byte_valid & genome_byte),
             self.snd.header.command.eq(self.command),
+            self.snd.header.tag.eq(self.tag),
             self.snd.header.status.eq(self.status),
             self.snd.header.length.eq(self.length),
             self.snd.byte.eq(self.reply.word_select(self.snd.index[:5], 8)),
         ]
 
-    def rows_for(self, command: Command):
-        """The assembler's row write, only in a frame of ``command``."""
-        return self.asm.row_we & (self.rcv.header.command == command.value)
+    def rows_for(self, m, command: Command, port):
+        """Drive the row-write ``port`` from the assembler, writing only in a frame of ``command``."""
+        m.d.comb += [port.addr.eq(self.asm.row.addr), port.data.eq(self.asm.row.data),
+                     port.we.eq(self.writes(command))]
+
+    def writes(self, command: Command):
+        """The assembler writes a row of a ``command`` frame in this cycle."""
+        return self.asm.row.we & (self.rcv.header.command == command.value)
 
     def args_as(self, layout):
         return data.View(layout, self.args[:data.Layout.cast(layout).size])
@@ -526,11 +534,11 @@ class _LinkTop(wiring.Component):
         with m.FSM(init="Listen"):
             with m.State("Listen"):
                 with m.If(rcv.truncated):
-                    m.d.sync += [link.command.eq(rcv.header.command),
+                    m.d.sync += [link.command.eq(rcv.header.command), link.tag.eq(rcv.header.tag),
                                  link.frames_rejected.eq(link.frames_rejected + 1)]
                     link.answer(m, Status.TRUNCATED)
                 with m.Elif(rcv.done):
-                    m.d.sync += link.command.eq(rcv.header.command)
+                    m.d.sync += [link.command.eq(rcv.header.command), link.tag.eq(rcv.header.tag)]
                     with m.If(~rcv.ok):
                         m.d.sync += link.frames_rejected.eq(link.frames_rejected + 1)
                         link.answer(m, Status.BAD_CRC)
@@ -590,13 +598,14 @@ class _LinkTop(wiring.Component):
     @staticmethod
     def _model_states(m, link, ev):
         """OBSERVE (entry + from-state, then the reached state: 2 cycles) and CLEAR on an
-        evaluator whose ports are ``model_*``, ``state_*``, ``clear``, ``ready``."""
+        evaluator whose ports are ``model`` (hdl.ports.ModelWriteSignature), ``state_*``,
+        ``clear``, ``ready``."""
         req = link.args_as(OBSERVE_REQUEST)
         with m.State(_state(Command.OBSERVE)):
             with m.If(ev.ready):
-                m.d.comb += [ev.model_state.eq(req.state), ev.model_motion.eq(req.motion),
-                             ev.model_next.eq(req.next), ev.model_crash.eq(req.crash),
-                             ev.model_valid.eq(1), ev.model_we.eq(1),
+                m.d.comb += [ev.model.state.eq(req.state), ev.model.motion.eq(req.motion),
+                             ev.model.next.eq(req.next), ev.model.crash.eq(req.crash),
+                             ev.model.valid.eq(1), ev.model.we.eq(1),
                              ev.state_value.eq(req.state), ev.state_we.eq(1)]
                 m.next = "ObserveReached"
         with m.State("ObserveReached"):
@@ -645,10 +654,8 @@ class ControllerLinkTop(_LinkTop):
     def _boards(self, m, link):
         self._ctl = m.submodules.ctl = ControllerEHW()
         self._reflex = Signal()
-        rows = link.asm
-        m.d.comb += [self._ctl.row_addr.eq(rows.row_addr), self._ctl.row_data.eq(rows.row_data),
-                     self._ctl.row_we.eq(link.rows_for(Command.LOAD_CONTROLLER)),
-                     self._ctl.reflex_en.eq(self._reflex)]
+        link.rows_for(m, Command.LOAD_CONTROLLER, self._ctl.row)
+        m.d.comb += self._ctl.reflex_en.eq(self._reflex)
 
     def _states(self, m, link):
         _controller_states(m, link, self._ctl, commit=self._ctl.commit, reflex=[self._reflex])
@@ -692,11 +699,9 @@ class EvaluatorLinkTop(_LinkTop):
                                                        distance_rule=self.distance_rule)
         self._reflex = Signal()
         self._loaded = Signal()
-        rows = link.asm
-        touched = link.rows_for(Command.LOAD_GENOME)
-        m.d.comb += [ev.row_addr.eq(rows.row_addr), ev.row_data.eq(rows.row_data),
-                     ev.row_we.eq(touched), ev.reflex_en.eq(self._reflex)]
-        with m.If(touched):
+        link.rows_for(m, Command.LOAD_GENOME, ev.row)
+        m.d.comb += ev.reflex_en.eq(self._reflex)
+        with m.If(link.writes(Command.LOAD_GENOME)):
             m.d.sync += self._loaded.eq(0)
 
     def _states(self, m, link):
@@ -729,9 +734,9 @@ class EvaluatorLinkTop(_LinkTop):
             with m.If((req.first != 0) | (req.count != 1)):
                 link.answer(m, Status.BAD_ARGUMENT)
             with m.Else():
-                result = link.reply_as(RESULT_REPLY)
+                result = link.reply_as(RESULT_REPLY).result
                 m.d.sync += [result.crashes.eq(ev.crashes), result.loops.eq(ev.loops),
-                             result.distance.eq(ev.distance), result["_pad"].eq(0)]
+                             result.distance.eq(ev.distance)]
                 link.answer(m, Status.OK, RESULT_BYTES)
 
 
@@ -758,13 +763,12 @@ class SystemLinkTop(_LinkTop):
 
         top = self._top = m.submodules.system = SystemTop(p_max=self.P_MAX, distance_rule=self.distance_rule)
         self._reflex = Signal()
-        rows = link.asm
+        rows = link.asm.row
         genome = self._genome = Signal(GENOME_BITS)
-        with m.If(link.rows_for(Command.LOAD_GENOME)):
-            m.d.sync += genome.word_select(rows.row_addr, ROW_BITS).eq(rows.row_data)
+        with m.If(link.writes(Command.LOAD_GENOME)):
+            m.d.sync += genome.word_select(rows.addr, ROW_BITS).eq(rows.data)
+        link.rows_for(m, Command.LOAD_CONTROLLER, top.ctl_row)
         m.d.comb += [
-            top.ctl_row_addr.eq(rows.row_addr), top.ctl_row_data.eq(rows.row_data),
-            top.ctl_row_we.eq(link.rows_for(Command.LOAD_CONTROLLER)),
             top.ctl_reflex_en.eq(self._reflex), top.ev_reflex_en.eq(self._reflex),
             top.pop_data.eq(genome),
         ]
@@ -774,17 +778,14 @@ class SystemLinkTop(_LinkTop):
         part = Array(Const(i % RESULT_BYTES, 3) for i in range(MAX_PAYLOAD + 1))
         index = link.snd.index
         result = Signal(8 * RESULT_BYTES)
-        m.d.comb += [top.res_addr.eq(req.first + which[index]), result.eq(top.res_data)]
+        m.d.comb += [top.res_addr.eq(req.first + which[index]), result.eq(top.res_data.as_value())]
         with m.If(link.command == Command.READ_RESULTS.value):
             m.d.comb += link.snd.byte.eq(result.word_select(part[index], 8))
 
     def _states(self, m, link):
         top = self._top
         ev = _EvaluatorPorts(
-            model_state=top.ev_model_state, model_motion=top.ev_model_motion,
-            model_next=top.ev_model_next, model_crash=top.ev_model_crash,
-            model_valid=top.ev_model_valid, model_we=top.ev_model_we,
-            state_value=top.ev_state_value, state_we=top.ev_state_we, clear=top.ev_clear,
+            model=top.ev_model, state_value=top.ev_state_value, state_we=top.ev_state_we, clear=top.ev_clear,
             ready=top.ev_ready & ~top.pop_busy)
         ctl = _EvaluatorPorts(x=top.ctl_x, motion=top.ctl_motion)
         _controller_states(m, link, ctl, commit=top.ctl_commit, reflex=[self._reflex])
