@@ -36,6 +36,7 @@ from pathlib import Path
 from typing import Callable
 
 from amaranth.hdl import Elaboratable, Module
+from amaranth.lib import io
 
 REPO_ROOT = Path(__file__).resolve().parents[1]
 BUILD_ROOT = Path("build/fpga")
@@ -121,8 +122,10 @@ class OnBoard(Elaboratable):
     def elaborate(self, platform):
         m = Module()
         top = m.submodules.top = self.top
-        uart = platform.request("uart", 0)
-        m.d.comb += [top.rx.eq(uart.rx.i), uart.tx.o.eq(top.tx)]
+        uart = platform.request("uart", 0, dir="-")
+        rx = m.submodules.rx_buffer = io.Buffer("i", uart.rx)
+        tx = m.submodules.tx_buffer = io.Buffer("o", uart.tx)
+        m.d.comb += [top.rx.eq(rx.i), tx.o.eq(top.tx)]
         return m
 
 
