@@ -19,6 +19,8 @@ Per target, ``results/fpga.json`` holds ``targets.<target>``: ``part``, ``luts``
 iCE40, LUT4 slots (TRELLIS_COMB) on ECP5, after packing: nextpnr's utilisation), ``ffs`` (Yosys's
 flip-flop cells), ``brams``, ``fmax_mhz`` (nextpnr's achieved figure for the board clock, from its
 ``--report`` JSON), ``clock_mhz``, ``timing_met``, ``bitstream``, ``build_s`` and ``tools``.
+A design that needs more logic cells than the part has is recorded too, with ``fits: false``, the
+cells it needs (nextpnr's log) and no bitstream; the command then exits 2.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -214,8 +217,24 @@ def parse_yosys_stat(stat: dict, family: str) -> int:
     return sum(int(n) for cell, n in cells.items() if cell.startswith(prefix))
 
 
+_LOG_UTILISATION = re.compile(r"^Info:\s+(\w+):\s+(\d+)/\s*(\d+)\s+\d+%$", re.M)
+
+
+def parse_nextpnr_log_utilisation(log: str, family: str) -> dict:
+    """luts, luts_available, brams from the utilisation nextpnr logs before placing (the only
+    figures of a design that does not fit: the ``--report`` JSON is not written then)."""
+    cells = {name: (int(used), int(available)) for name, used, available in _LOG_UTILISATION.findall(log)}
+    logic, bram = _UTILISATION[family]
+    if logic not in cells:
+        raise FpgaError(f"nextpnr log has no {logic} utilisation")
+    return {"luts": cells[logic][0], "luts_available": cells[logic][1], "brams": cells.get(bram, (0, 0))[0]}
+
+
 def timing_line(name: str, entry: dict) -> str:
     """The output line of a built target; a failed timing constraint is said in capitals."""
+    if not entry.get("fits", True):
+        return (f"{name}: DOES NOT FIT the {entry['part']}: {entry['luts']:,} of {entry['luts_available']:,} "
+                f"logic cells ({100 * entry['luts'] / entry['luts_available']:.0f} %), {entry['ffs']:,} FFs; no bitstream")
     text = (f"{name}: {entry['part']}, {entry['luts']:,} LUTs, {entry['ffs']:,} FFs, "
             f"{entry['brams']} BRAM, Fmax {entry['fmax_mhz']:g} MHz for a {entry['clock_mhz']:g} MHz "
             f"clock, {entry['build_s']:.0f} s -> {entry['bitstream']}")
@@ -265,6 +284,9 @@ def build(target: Target, build_root: Path | str = BUILD_ROOT, env: dict | None 
     try:
         plan.execute_local(str(out), env=env)
     except subprocess.CalledProcessError as exc:
+        unfit = _unfit_entry(target, platform, out, clock_mhz, time.perf_counter() - t0, env)
+        if unfit is not None:
+            return unfit
         raise FpgaError(f"{target.name}: the build failed ({exc}); logs in {out}/{BUILD_NAME}.rpt "
                         f"(Yosys) and {out}/{BUILD_NAME}.tim (nextpnr)") from None
     build_s = time.perf_counter() - t0
@@ -280,6 +302,7 @@ def build(target: Target, build_root: Path | str = BUILD_ROOT, env: dict | None 
         "board": target.board,
         "design": target.design,
         "part": part_name(platform),
+        "fits": True,
         **placed,
         "ffs": ffs,
         "clock_mhz": clock_mhz,
@@ -289,6 +312,26 @@ def build(target: Target, build_root: Path | str = BUILD_ROOT, env: dict | None 
         "build_s": round(build_s, 1),
         "seed": seed,
         "tools": tool_versions(target.family, env),
+        "built": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+    }
+
+
+def _unfit_entry(target: Target, platform, out: Path, clock_mhz: float, build_s: float, env: dict):
+    """The entry of a build nextpnr stopped because the design needs more logic cells than the
+    part has (recorded, not hidden), or None when it failed for another reason."""
+    try:
+        used = parse_nextpnr_log_utilisation((out / f"{BUILD_NAME}.tim").read_text(), target.family)
+        ffs = parse_yosys_stat(json.loads((out / f"{BUILD_NAME}.stat.json").read_text()), target.family)
+    except (OSError, json.JSONDecodeError, FpgaError):
+        return None
+    if used["luts"] <= used["luts_available"]:
+        return None
+    return {
+        "board": target.board, "design": target.design, "part": part_name(platform), "fits": False,
+        **used, "ffs": ffs, "fmax_mhz": None, "timing_met": False, "clock_mhz": clock_mhz,
+        "bitstream": None,
+        "reports": {"yosys_log": str(out / f"{BUILD_NAME}.rpt"), "nextpnr_log": str(out / f"{BUILD_NAME}.tim")},
+        "build_s": round(build_s, 1), "tools": tool_versions(target.family, env),
         "built": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
     }
 
@@ -311,7 +354,7 @@ def main(argv=None) -> int:
         print(f"error: unknown target(s) {', '.join(map(repr, unknown))}; known: {', '.join(TARGETS)}",
               file=sys.stderr)
         return 2
-    failed_timing, failed = [], []
+    failed_timing, failed, wrote = [], [], False
     try:
         env = tool_env()
     except FpgaError as exc:
@@ -326,13 +369,16 @@ def main(argv=None) -> int:
             failed.append(name)
             continue
         write_results(args.results, name, entry)
+        wrote = True
         print(timing_line(name, entry), flush=True)
-        if not entry["timing_met"]:
+        if not entry["fits"]:
+            failed.append(name)
+        elif not entry["timing_met"]:
             failed_timing.append(name)
-    if len(failed) < len(args.targets or TARGETS):
+    if wrote:
         print(f"wrote {args.results}")
     if failed:
-        print(f"error: {', '.join(failed)} did not build (see above)", file=sys.stderr)
+        print(f"error: no bitstream for {', '.join(failed)} (see above)", file=sys.stderr)
         return 2
     if failed_timing:
         print(f"error: {', '.join(failed_timing)} fail timing at the board clock (see above)", file=sys.stderr)

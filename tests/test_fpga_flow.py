@@ -17,7 +17,8 @@ import pytest
 
 from cosim.hardware_time import CLOCK_HZ, measured_clock
 from hdl import fpga
-from hdl.fpga import FpgaError, parse_nextpnr_report, parse_yosys_stat, timing_line, write_results
+from hdl.fpga import (FpgaError, parse_nextpnr_log_utilisation, parse_nextpnr_report, parse_yosys_stat,
+                      timing_line, write_results)
 
 # trimmed from build/fpga/icebreaker-controller/top.report.json (nextpnr-ice40 0.11.1)
 ICE40_REPORT = {
@@ -58,6 +59,23 @@ def test_yosys_stat_counts_every_flip_flop_cell():
     assert parse_yosys_stat({"design": {"num_cells_by_type": {"TRELLIS_FF": 12, "LUT4": 40}}}, "ecp5") == 12
     with pytest.raises(FpgaError):
         parse_yosys_stat({"design": {}}, "ice40")
+
+
+# from build/fpga/icebreaker-evaluator/top.tim of a design that does not fit (nextpnr-ice40 0.11.1)
+UNFIT_LOG = """Info: Device utilisation:
+Info: \t         ICESTORM_LC:    5394/   5280   102%
+Info: \t        ICESTORM_RAM:       5/     30    16%
+Info: \t               SB_IO:       3/     96     3%
+ERROR: Failed to expand region (0, 0) |_> (25, 31) of 5394 ICESTORM_LCs
+"""
+
+
+def test_nextpnr_log_utilisation_of_a_design_that_does_not_fit():
+    assert parse_nextpnr_log_utilisation(UNFIT_LOG, "ice40") == {"luts": 5394, "luts_available": 5280, "brams": 5}
+    with pytest.raises(FpgaError):
+        parse_nextpnr_log_utilisation(UNFIT_LOG, "ecp5")
+    line = timing_line("icebreaker-evaluator", _entry(fits=False, luts=5394, luts_available=5280, bitstream=None))
+    assert line.startswith("icebreaker-evaluator: DOES NOT FIT the iCE40UP5K-SG48: 5,394 of 5,280 logic cells (102 %)")
 
 
 def _entry(**overrides):
