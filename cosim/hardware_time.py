@@ -46,11 +46,15 @@ def measured_clock(target: str | None = None, results: Path | str | None = None)
     path = Path(results) if results is not None else FPGA_RESULTS
     try:
         entry = json.loads(path.read_text())["targets"][target]
-        mhz = float(entry["fmax_mhz"])
     except (OSError, ValueError, KeyError, TypeError):
         return CLOCK_HZ, f"{CLOCK_DEFAULT_NAME}: no {target} build in {path.name} (make bitstream)"
+    try:
+        mhz = float(entry["fmax_mhz"])
+    except (KeyError, TypeError, ValueError):
+        mhz = 0.0
     if not mhz > 0:
-        return CLOCK_HZ, f"{CLOCK_DEFAULT_NAME}: {target} in {path.name} has no Fmax"
+        why = "does not fit its part" if entry.get("fits") is False else "has no Fmax"
+        return CLOCK_HZ, f"{CLOCK_DEFAULT_NAME}: the {target} build in {path.name} {why}"
     return mhz * 1e6, f"measured Fmax of {target} ({entry.get('part', '?')}, {path.name})"
 
 

@@ -159,6 +159,14 @@ def test_clock_is_the_measured_fmax_of_the_build(tmp_path, monkeypatch):
         measured_clock(results=path)
 
 
+def test_clock_of_a_build_that_does_not_fit_falls_back_and_says_so(tmp_path, monkeypatch):
+    monkeypatch.delenv("EHW_CLOCK_HZ", raising=False)
+    path = tmp_path / "fpga.json"
+    write_results(path, "icebreaker-evaluator", _entry(fits=False, fmax_mhz=None, bitstream=None))
+    hz, source = measured_clock("icebreaker-evaluator", results=path)
+    assert hz == CLOCK_HZ and source.endswith("icebreaker-evaluator build in fpga.json does not fit its part")
+
+
 def test_clock_from_a_broken_results_file_falls_back(tmp_path, monkeypatch):
     monkeypatch.delenv("EHW_CLOCK_HZ", raising=False)
     path = tmp_path / "fpga.json"
