@@ -22,7 +22,7 @@ import os
 from pathlib import Path
 
 CLOCK_HZ = 12e6  # the named default without an FPGA build: the iCEBreaker's oscillator
-CLOCK_DEFAULT_NAME = "12 MHz default (the iCEBreaker's oscillator)"
+CLOCK_DEFAULT_NAME = "named default, the iCEBreaker's 12 MHz oscillator"
 FPGA_RESULTS = Path(__file__).resolve().parents[1] / "results" / "fpga.json"  # hdl.fpga writes it
 FPGA_TARGET = "ulx3s-system"  # the build of SystemTop, whose cycles the HDL backends count
 ROWS = 50  # row writes per controller (ga.genome.N_ROWS)
@@ -55,7 +55,7 @@ def measured_clock(target: str | None = None, results: Path | str | None = None)
     if not mhz > 0:
         why = "does not fit its part" if entry.get("fits") is False else "has no Fmax"
         return CLOCK_HZ, f"{CLOCK_DEFAULT_NAME}: the {target} build in {path.name} {why}"
-    return mhz * 1e6, f"measured Fmax of {target} ({entry.get('part', '?')}, {path.name})"
+    return mhz * 1e6, f"measured Fmax of {target}, {entry.get('part', '?')}, {path.name}"
 
 
 def clock_hz_default() -> float:

@@ -139,7 +139,7 @@ def test_clock_without_a_build_is_the_named_default(tmp_path, monkeypatch):
     monkeypatch.delenv("EHW_FPGA_TARGET", raising=False)
     hz, source = measured_clock(results=tmp_path / "fpga.json")
     assert hz == CLOCK_HZ == 12e6
-    assert source.startswith("12 MHz default") and "no ulx3s-system build" in source
+    assert source.startswith("named default, the iCEBreaker's 12 MHz oscillator") and "no ulx3s-system build" in source
 
 
 def test_clock_is_the_measured_fmax_of_the_build(tmp_path, monkeypatch):
@@ -148,7 +148,7 @@ def test_clock_is_the_measured_fmax_of_the_build(tmp_path, monkeypatch):
     path = tmp_path / "fpga.json"
     write_results(path, "ulx3s-system", _entry(part="LFE5U-85F-BG381", fmax_mhz=33.6))
     write_results(path, "icebreaker-evaluator", _entry(fmax_mhz=13.95))
-    assert measured_clock(results=path) == (33.6e6, "measured Fmax of ulx3s-system (LFE5U-85F-BG381, fpga.json)")
+    assert measured_clock(results=path) == (33.6e6, "measured Fmax of ulx3s-system, LFE5U-85F-BG381, fpga.json")
     assert measured_clock("icebreaker-evaluator", results=path)[0] == 13.95e6
     monkeypatch.setenv("EHW_FPGA_TARGET", "icebreaker-evaluator")
     assert measured_clock(results=path)[0] == 13.95e6
