@@ -166,13 +166,14 @@ def boards_over(clients, reflex: bool = True, check: bool = True, distance_rule:
 
 
 def open_port(port: str, baud: float):
-    """A ``serial.Serial`` on ``port``, or a ``LinkError`` naming it."""
+    """A pyserial port on ``port`` (a device or a pyserial URL), or a ``LinkError`` naming it."""
     try:
         import serial
     except ImportError:  # pragma: no cover - pyserial is a dependency
         raise LinkError("the serial backend needs pyserial: pip install -e . (make sim does)") from None
-    try:
-        return serial.Serial(port, baudrate=int(baud), timeout=SERIAL_TIMEOUT_S, write_timeout=SERIAL_TIMEOUT_S)
+    try:  # a device path, or any pyserial URL (socket://host:port, rfc2217://..., loop://)
+        return serial.serial_for_url(port, baudrate=int(baud), timeout=SERIAL_TIMEOUT_S,
+                                     write_timeout=SERIAL_TIMEOUT_S)
     except (serial.SerialException, OSError, ValueError) as exc:
         raise LinkError(f"{port}: cannot open the serial port ({exc})") from None
 
@@ -228,10 +229,12 @@ def main_from_args(args, config) -> int:
         return uart_main(args, config)
     from cosim.online import make_run, summary_table, write_results
 
+    from cosim.checkpoint import CheckpointError
+
     try:
         run = make_run(config, "serial", args.out, resume=args.resume, progress=not args.no_progress)
         run.run()
-    except LinkError as exc:
+    except (LinkError, CheckpointError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     summary = write_results(run, args.out, plots=not args.no_plots)

@@ -245,32 +245,54 @@ class LinkClient:
     def load_genomes(self, population, window: int = PIPELINE) -> None:
         """LOAD_GENOME of genome i into slot i for every genome, pipelined: the next frame goes out
         before the last reply is read (at most ``window`` unanswered), so the line never idles
-        waiting for a reply. A reply that is not a clean OK for its tag makes that genome go
-        again through :meth:`request` (stop-and-wait, with its retries)."""
-        pending = []
-        for index, rows in enumerate(population):
-            payload = pack(LOAD_GENOME_REQUEST, index=index) + genome_payload(rows)
+        waiting for a reply. When a reply is not a clean OK for its frame, the pipeline is
+        drained: that genome and the ones in flight behind it go again one at a time through
+        :meth:`request` (with its retries; late replies are skipped by their tags)."""
+        payloads = [pack(LOAD_GENOME_REQUEST, index=i) + genome_payload(rows) for i, rows in enumerate(population)]
+        pending: list[tuple[int, int]] = []  # (tag, index) in flight
+        redo_from = None
+        for index, payload in enumerate(payloads):
             self._tag = (self._tag + 1) % 256
             frame = encode_frame(Command.LOAD_GENOME, payload, tag=self._tag)
             self.stream.write(frame)
             self.stats.bytes_sent += len(frame)
             self.stats.requests += 1
-            pending.append((self._tag, payload))
+            pending.append((self._tag, index))
             if len(pending) >= window:
-                self._settle(*pending.pop(0))
-        for tag, payload in pending:
-            self._settle(tag, payload)
-
-    def _settle(self, tag: int, payload: bytes) -> None:
-        reply = self._read_reply()
-        if (not isinstance(reply, str) and reply[0].tag == tag and reply[0].status == Status.OK.value
-                and reply[0].command == Command.LOAD_GENOME.value and not reply[1]):
+                tag, first = pending.pop(0)
+                if not self._settled(tag):
+                    redo_from = first
+                    break
+        while redo_from is None and pending:
+            tag, first = pending.pop(0)
+            if not self._settled(tag):
+                redo_from = first
+        if redo_from is None:
             return
-        reason = reply if isinstance(reply, str) else f"pipelined reply {Status(reply[0].status).name}"
+        in_flight = 1 + len(pending)  # the failed frame and the ones sent after it
+        for index in range(redo_from, len(payloads)):
+            if index > redo_from and index < redo_from + in_flight:
+                self.stats.resends += 1
+                self.stats.note("in flight behind a failed frame")
+            self.stats.requests -= int(index < redo_from + in_flight)  # counted again by request()
+            self.request(Command.LOAD_GENOME, payloads[index], reply_length=0)
+
+    def _settled(self, tag: int) -> bool:
+        """Read the reply to the pipelined LOAD_GENOME ``tag``: True for a clean OK; else note why
+        (and count the resend that follows)."""
+        reply = self._read_reply()
+        if isinstance(reply, str):
+            reason = reply
+        else:
+            header, body = reply
+            if header.tag == tag and header.status == Status.OK.value and not body:
+                return True
+            name = Status(header.status).name if header.status in {s.value for s in Status} else hex(header.status)
+            reason = f"pipelined reply {name}" + ("" if header.tag == tag else " (another tag)")
         self.stats.note(reason)
         self.stats.resends += 1
-        self.stats.requests -= 1  # counted again by request()
-        self.request(Command.LOAD_GENOME, payload, reply_length=0)
+        self.stream.reset_input_buffer()
+        return False
 
     def evaluate(self, count: int) -> int:
         """Evaluate population slots 0..count-1; the board's cycles for it."""

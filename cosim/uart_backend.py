@@ -24,6 +24,9 @@ import logging
 import os
 from pathlib import Path
 
+from amaranth.lib import wiring
+from amaranth.lib.wiring import In, Out
+
 from cosim.boards import register_backend
 
 TOPLEVEL = "system_link_top"
@@ -31,6 +34,9 @@ SIM_CLK_HZ = 25_000_000  # the ULX3S's oscillator; a whole number of ns a period
 CONFIG_ENV = "EHW_ONLINE_CONFIG"
 OPTIONS_ENV = "EHW_UART_OPTIONS"
 BAUD_ENV = "EHW_BAUD"
+LINE_ENV = "EHW_UART_LINE"  # hdl (default: the host's UART in the simulation) or cocotbext
+LINES = ("hdl", "cocotbext")
+HOST_FIFO_DEPTH = 512  # bytes the host may write ahead (two LOAD_GENOME frames are 256)
 
 _active_line = None  # the SimulatedSerial of the running test (inside the simulator only)
 
@@ -113,6 +119,111 @@ class SimulatedSerial:
         self._call(self._flush)
 
 
+class LinkHarness(wiring.Component):
+    """SystemLinkTop with the host's end of its serial line beside it, for simulation.
+
+    ``internal`` = 0: the top's UART pins are the harness's ``rx`` / ``tx`` (a transmitter in
+    Python drives them bit by bit: :class:`SimulatedSerial`). ``internal`` = 1: they are wired to
+    a second ``hdl.uart.UART``, the host's USB-serial chip as it were, that sends the bytes
+    written into a FIFO (``host_w_data`` / ``host_w_en``) and pulses ``host_r_valid`` with each
+    byte it receives (:class:`HarnessSerial`). The line between the two is the same bit-level
+    8N1 signal; only the host's end costs one Python event a byte instead of one a bit.
+    """
+
+    def __init__(self, top):
+        self.top = top
+        super().__init__({
+            "rx": In(1, init=1), "tx": Out(1, init=1), "internal": In(1),
+            "host_w_data": In(8), "host_w_en": In(1), "host_w_rdy": Out(1),
+            "host_r_data": Out(8), "host_r_valid": Out(1),
+        })
+
+    def elaborate(self, platform):
+        from amaranth.hdl import Module, Mux
+        from amaranth.lib.fifo import SyncFIFOBuffered
+
+        from hdl.uart import UART
+
+        m = Module()
+        top = m.submodules.link = self.top
+        host = m.submodules.host = UART(top.clk_freq_hz, top.baud)
+        fifo = m.submodules.fifo = SyncFIFOBuffered(width=8, depth=HOST_FIFO_DEPTH)
+        m.d.comb += [
+            fifo.w_data.eq(self.host_w_data), fifo.w_en.eq(self.host_w_en), self.host_w_rdy.eq(fifo.w_rdy),
+            host.tx_data.payload.eq(fifo.r_data), host.tx_data.valid.eq(fifo.r_rdy),
+            fifo.r_en.eq(host.tx_data.ready),
+            host.rx_data.ready.eq(1),
+            self.host_r_data.eq(host.rx_data.payload), self.host_r_valid.eq(host.rx_data.valid),
+            top.rx.eq(Mux(self.internal, host.tx, self.rx)),
+            host.rx.eq(Mux(self.internal, top.tx, 1)),
+            self.tx.eq(top.tx),
+        ]
+        return m
+
+
+class HarnessSerial:
+    """A serial port onto :class:`LinkHarness`'s host UART (``internal`` = 1): one Python event
+    a byte. Same interface and timeout semantics as :class:`SimulatedSerial`."""
+
+    def __init__(self, dut, timeout: float, name: str = TOPLEVEL):
+        import cocotb
+        from cocotb.triggers import Event
+
+        self.dut = dut
+        self.port = f"simulated serial line of {name} (host UART in the simulation)"
+        self.timeout = timeout
+        self._received: list[int] = []
+        self._arrived = Event()
+        dut.internal.value = 1
+        dut.host_w_en.value = 0
+        self._monitor = cocotb.start_soon(self._receive())
+
+    async def _receive(self) -> None:
+        from cocotb.triggers import RisingEdge
+
+        valid = self.dut.host_r_valid
+        while True:
+            await RisingEdge(valid)  # one pulse a byte (ready is always 1)
+            self._received.append(int(self.dut.host_r_data.value))
+            self._arrived.set()
+
+    async def _write(self, data: bytes) -> None:
+        from cocotb.triggers import RisingEdge
+
+        dut = self.dut
+        for byte in data:
+            while not int(dut.host_w_rdy.value):
+                dut.host_w_en.value = 0
+                await RisingEdge(dut.clk)
+            dut.host_w_data.value = byte
+            dut.host_w_en.value = 1
+            await RisingEdge(dut.clk)
+        dut.host_w_en.value = 0
+
+    async def _read(self, n: int) -> bytes:
+        from cocotb.triggers import First, Timer
+        from cocotb.utils import get_sim_time
+
+        deadline = get_sim_time("ns") + self.timeout * 1e9
+        while len(self._received) < n:
+            left = deadline - get_sim_time("ns")
+            if left <= 0:
+                break
+            self._arrived.clear()
+            await First(self._arrived.wait(), Timer(max(1, int(left)), "ns"))
+        out = bytes(self._received[:n])
+        del self._received[:n]
+        return out
+
+    async def _flush(self) -> None:
+        self._received.clear()
+
+    _call = SimulatedSerial._call
+    write = SimulatedSerial.write
+    read = SimulatedSerial.read
+    reset_input_buffer = SimulatedSerial.reset_input_buffer
+
+
 def make_uart_boards(reflex: bool = True, distance_rule: str = "covered", check: bool = True):
     """The board pair over the running test's simulated line (inside the simulator only)."""
     from cosim.link_boards import boards_over
@@ -135,19 +246,24 @@ except ImportError:  # pragma: no cover - cocotb is a dependency
     cocotb = None
 
 
-async def start_top(dut, baud: float, timeout: float) -> SimulatedSerial:
-    """Clock, synchronous reset, the evaluator's RAM sweep; the line to the top."""
+async def start_top(dut, baud: float, timeout: float, line: str = "cocotbext"):
+    """Clock, synchronous reset, the evaluator's RAM sweep; the ``line`` to the top (``LINES``:
+    :class:`HarnessSerial` or :class:`SimulatedSerial`)."""
     from cocotb.clock import Clock
     from cocotb.triggers import ClockCycles
 
+    if line not in LINES:
+        raise ValueError(f"{LINE_ENV}={line!r}: one of {LINES!r}")
     period_ps = round(1e12 / SIM_CLK_HZ)
     dut.rx.value = 1
+    dut.internal.value = int(line == "hdl")
+    dut.host_w_en.value = 0
     Clock(dut.clk, period_ps, unit="ps", impl="gpi").start(start_high=False)
     dut.rst.value = 1
     await ClockCycles(dut.clk, 2)
     dut.rst.value = 0
     await ClockCycles(dut.clk, 2100)  # Boot + Clear of the evaluator's RAM (2049 cycles)
-    return SimulatedSerial(dut, baud, timeout)
+    return HarnessSerial(dut, timeout) if line == "hdl" else SimulatedSerial(dut, baud, timeout)
 
 
 def _experiment(config: dict, options: dict) -> dict:
@@ -176,7 +292,7 @@ if cocotb is not None:
 
         config = json.loads(os.environ[CONFIG_ENV])
         options = json.loads(os.environ[OPTIONS_ENV])
-        _active_line = await start_top(dut, options["baud"], options["host_timeout_s"])
+        _active_line = await start_top(dut, options["baud"], options["host_timeout_s"], options["line"])
         try:
             await bridge(_experiment)(config, options)
         finally:
@@ -188,8 +304,8 @@ if cocotb is not None:
 
 def write_link_verilog(out_dir: Path, *, baud: float, p_max: int | None = None,
                        distance_rule: str = "covered") -> Path:
-    """``system_link_top.v``: SystemLinkTop at ``SIM_CLK_HZ`` and ``baud`` (build id 0: the
-    simulated top does not depend on the commit)."""
+    """``system_link_top.v``: :class:`LinkHarness` around SystemLinkTop at ``SIM_CLK_HZ`` and
+    ``baud`` (build id 0: the simulated top does not depend on the commit)."""
     from amaranth.back import verilog
 
     from cosim.cocotb_backend import icarus_time_zero_fix
@@ -197,8 +313,8 @@ def write_link_verilog(out_dir: Path, *, baud: float, p_max: int | None = None,
 
     out_dir.mkdir(parents=True, exist_ok=True)
     path = out_dir / f"{TOPLEVEL}.v"
-    top = SystemLinkTop(SIM_CLK_HZ, baud, p_max=p_max, distance_rule=distance_rule,
-                        timeout_s=board_timeout_s(baud), build_id=0)
+    top = LinkHarness(SystemLinkTop(SIM_CLK_HZ, baud, p_max=p_max, distance_rule=distance_rule,
+                                    timeout_s=board_timeout_s(baud), build_id=0))
     path.write_text(icarus_time_zero_fix(verilog.convert(top, name=TOPLEVEL, emit_src=False)))
     return path
 
@@ -213,8 +329,11 @@ def prepare_uart_run(config, out: Path, *, baud: float, p_max: int | None = None
     p_max = P_MAX if p_max is None else int(p_max)
     source = write_link_verilog(SIM_BUILD / f"{build_name}_verilog", baud=baud, p_max=p_max,
                                 distance_rule=config.distance_rule)
+    line = os.environ.get(LINE_ENV) or "hdl"
+    if line not in LINES:
+        raise ValueError(f"{LINE_ENV}={line!r}: one of {LINES!r}")
     options = {"out": str(out), "resume": resume, "plots": plots, "progress": progress,
-               "baud": baud, "host_timeout_s": host_timeout_s(baud, p_max)}
+               "baud": baud, "host_timeout_s": host_timeout_s(baud, p_max), "line": line}
     env = {CONFIG_ENV: json.dumps(config.to_dict()), OPTIONS_ENV: json.dumps(options),
            "EHW_SYSTEM_P_MAX": str(p_max)}
     return source, env

@@ -625,8 +625,9 @@ def _state(command: Command) -> str:
     return "Run" + "".join(part.capitalize() for part in command.name.split("_"))
 
 
-class _EvaluatorPorts:
-    """EvaluatorEHW's or SystemTop's evaluator-side ports under the names ``_model_states`` uses."""
+class _Ports:
+    """A board's ports under the names the shared command states use (SystemTop's ``ev_*`` and
+    ``ctl_*`` ports seen as an evaluator's and a controller's)."""
 
     def __init__(self, **ports):
         self.__dict__.update(ports)
@@ -784,10 +785,10 @@ class SystemLinkTop(_LinkTop):
 
     def _states(self, m, link):
         top = self._top
-        ev = _EvaluatorPorts(
+        ev = _Ports(
             model=top.ev_model, state_value=top.ev_state_value, state_we=top.ev_state_we, clear=top.ev_clear,
             ready=top.ev_ready & ~top.pop_busy)
-        ctl = _EvaluatorPorts(x=top.ctl_x, motion=top.ctl_motion)
+        ctl = _Ports(x=top.ctl_x, motion=top.ctl_motion)
         _controller_states(m, link, ctl, commit=top.ctl_commit, reflex=[self._reflex])
         self._model_states(m, link, ev)
         with m.State(_state(Command.LOAD_GENOME)):

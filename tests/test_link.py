@@ -183,6 +183,11 @@ def test_serial_backend_errors_name_the_port(monkeypatch, tmp_path, capsys):
     assert main(["--backend", "serial", "--out", str(tmp_path), "--no-plots", "--no-progress"]) == 2
     err = capsys.readouterr().err
     assert err.startswith("error: ") and "ttyNONE: cannot open the serial port" in err and err.count("\n") == 1
+    # a port that answers, but not with this protocol's replies (pyserial's loop:// echoes)
+    monkeypatch.setenv("EHW_PORT", "loop://")
+    assert main(["--backend", "serial", "--out", str(tmp_path), "--no-plots", "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: loop://: no board answers IDENTIFY") and err.count("\n") == 1, err
 
 
 def test_wrong_design_and_silent_board_are_named():
