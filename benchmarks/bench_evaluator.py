@@ -10,6 +10,11 @@
   controller / N, loading included, with the next controller's rows written while the current one
   runs (the board's normal mode); ``..._sequential``: rows first, then the evaluation.
   Measured in Amaranth's simulator.
+- ``evaluator_ehw_evals_per_s``: controllers per second of the EHW evaluator in SystemTop (the
+  streamer's exact cycle model, ``cosim.hardware_time.stream_cycles``, population 500 on 100
+  states) at the measured Fmax of its FPGA build (``..._clock``: which build, from
+  results/fpga.json, or the named 12 MHz default without one); ``..._single_buffered`` the same
+  for the two-iCEBreaker evaluator board (rows first, then the evaluation) at its own build's Fmax.
 """
 
 from __future__ import annotations
@@ -91,7 +96,17 @@ def hardware_figures(rng) -> dict:
             margin = 2 * n + 60 - per_controller
             worst_margin = margin if worst_margin is None else min(worst_margin, margin)
             sink.append(per_controller / n)
+    from cosim.hardware_time import measured_clock, stream_cycles
+
+    n_states = 100
+    hz, source = measured_clock()
+    per_controller_seq = float(np.interp(n_states, HDL_MODEL_SIZES, np.array(per_state_seq) * HDL_MODEL_SIZES))
+    hz_sb, source_sb = measured_clock("icebreaker-evaluator")
     return {
+        "evaluator_ehw_evals_per_s": round(POPULATION * hz / stream_cycles(POPULATION, n_states)),
+        "evaluator_ehw_evals_per_s_clock": f"{hz / 1e6:g} MHz, {source}",
+        "evaluator_ehw_evals_per_s_single_buffered": round(hz_sb / per_controller_seq),
+        "evaluator_ehw_evals_per_s_single_buffered_clock": f"{hz_sb / 1e6:g} MHz, {source_sb}",
         "evaluator_cycles_per_state": round(float(np.mean(per_state)), 3),
         "evaluator_cycles_per_state_sequential": round(float(np.mean(per_state_seq)), 3),
         "evaluator_cycles_per_state_by_n": {str(n): round(v, 3) for n, v in zip(HDL_MODEL_SIZES, per_state)},

@@ -4,7 +4,10 @@ The loops talk only to these interfaces; a backend is chosen by name:
 
 - ``reference``: NumPy models (``ga.truth_table``, ``ga.world_model``, ``ga.evaluator``), fast;
 - ``amaranth``: the Amaranth components in Amaranth's simulator;
-- ``cocotb``: the generated Verilog in Icarus, driven from inside a cocotb test.
+- ``cocotb``: the generated Verilog in Icarus, driven from inside a cocotb test;
+- ``serial``: real boards behind the UART host link (``cosim.link_boards``);
+- ``uart``: the board top with its UART in Verilator, reached over a simulated serial line by
+  the same host code (``cosim.uart_backend``).
 
 The same seed gives the same controllers, trajectory and counts in every backend; the HDL
 backends also count clock cycles.
@@ -29,6 +32,8 @@ _BACKENDS = {
     "reference": (None, None),
     "amaranth": ("cosim.amaranth_backend", None),
     "cocotb": ("cosim.cocotb_backend", "cosim.cocotb_launch:launch"),
+    "serial": ("cosim.link_boards", None),  # real boards behind the UART host link
+    "uart": ("cosim.uart_backend", "cosim.uart_backend:launch"),  # the link top in Verilator
 }
 BACKENDS = tuple(_BACKENDS)
 

@@ -185,7 +185,8 @@ def cmd_baseline(args, extras: dict, sub=None) -> int:
 
 # Subcommands whose module comes from other work: listed only where the checkout has the module
 # (``formal`` joins here once its module is on main: one line).
-EXTERNAL = {"bitstream": ("hdl.fpga", "FPGA bitstreams of the EHW boards (hdl.fpga)")}
+EXTERNAL = {"bitstream": ("hdl.fpga", "FPGA bitstreams of the EHW boards (hdl.fpga)"),
+            "formal": ("formal.__main__", "the formal proofs of the gateware -> results/formal.json (docs/formal.md)")}
 
 
 def _external_parser(p) -> None:
@@ -204,7 +205,7 @@ PASS_THROUGH = ("compare", *EXTERNAL)
 COMMANDS = {
     "sim": (sim_parser, cmd_sim, "the on-line model-based experiment: one robot lifetime (paper 5.2)"),
     "offline": (offline_parser, cmd_offline, "the off-line model-free experiment (paper 5.1)"),
-    "compare": (_compare_parser, cmd_compare, "both methods and the baseline over N seeds -> compare.md"),
+    "compare": (_compare_parser, cmd_compare, "every method (on-line, off-line, baseline, RL peers) over N seeds -> compare.md/.json/.png"),
     "verilog": (_verilog_parser, cmd_verilog, "the Verilog of the EHW blocks -> build/verilog/"),
     "bench": (_bench_parser, cmd_bench, "speed figures -> results/bench.json"),
     "arena": (_arena_parser, cmd_arena, "render arenas -> results/arena_<name>.png"),
@@ -221,7 +222,11 @@ def build_parser() -> argparse.ArgumentParser:
     subs = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=ArgumentParser)
     commands = dict(COMMANDS)
     for name, (module, text) in EXTERNAL.items():
-        if importlib.util.find_spec(module) is not None:
+        try:
+            found = importlib.util.find_spec(module) is not None
+        except ModuleNotFoundError:  # the parent package is absent
+            found = False
+        if found:
             commands[name] = (_external_parser, _cmd_external(module), text)
     for name, (add, _, text) in commands.items():
         sub = subs.add_parser(name, help=text, description=text, formatter_class=HelpFormatter,

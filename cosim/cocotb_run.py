@@ -20,7 +20,6 @@ Simulators (``simulator=`` or the ``EHW_SIM`` environment variable):
 from __future__ import annotations
 
 import os
-import re
 import shutil
 import sys
 from pathlib import Path
@@ -171,15 +170,8 @@ def run_cocotb(
     return n_tests, results
 
 
-# Yosys makes every generated ``always @*`` block also wait on a 1-bit ``reg ... = 0`` so that it
-# runs once at time 0; Icarus applies that initialiser without an event, so a combinational block
-# whose inputs keep their initial values is never evaluated and drives X. (Seen here: the
-# evaluator's per-motion distance lookup read X until ``cur_motion`` first changed from 0, so a
-# population whose first traced motions were all "forward" scored distance X.) Toggling each
-# trigger register once, before the first clock edge, runs every such block.
-_TRIGGER = re.compile(r"^(\s*)reg (\\\$auto\$verilog_backend\.cc:\d+:dump_module\$\d+ ) = 0;$", re.M)
-
-
 def icarus_time_zero_fix(verilog: str) -> str:
-    """``verilog`` with an ``initial #1`` toggle of each of Yosys's time-0 trigger registers."""
-    return _TRIGGER.sub(lambda mt: f"{mt.group(0)}\n{mt.group(1)}initial #1 {mt.group(2)}= 1;", verilog)
+    """The time-0 fix of every generated top (``hdl.generate.time_zero_fix``, its one place)."""
+    from hdl.generate import time_zero_fix
+
+    return time_zero_fix(verilog)

