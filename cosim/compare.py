@@ -47,6 +47,7 @@ from pathlib import Path
 
 import numpy as np
 
+from cosim.runs import atomic_write_text
 from cosim.compare_report import (  # noqa: F401  (re-exported: the names of cosim.compare)
     ADAPT_WINDOW, DEEP, DEFAULT_METHODS, METHODS, N_TARGETS, NAMES, OPTIONAL, PAPER, ROWS, SHAPINGS, TABULAR,
     _seed_text, build_report, display_name, markdown, write_plot,
@@ -283,7 +284,7 @@ def main(argv=None) -> int:
             return _error(f"no such file: {args.render}")
         report = _load_report(args.render)
         text = markdown(report)
-        (args.render.parent / "compare.md").write_text(text)
+        atomic_write_text(args.render.parent / "compare.md", text)
         write_plot(report, args.render.parent / "compare.png")
         print(text)
         return 0
@@ -392,9 +393,9 @@ def main(argv=None) -> int:
     report["executor"] = (f"Dask cluster {args.cluster}" if args.cluster else "local process pool") + \
         f", {args.jobs} worker(s)"
     args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "compare.json").write_text(json.dumps(report, indent=1) + "\n")
+    atomic_write_text(args.out / "compare.json", json.dumps(report, indent=1) + "\n")
     text = markdown(report)
-    (args.out / "compare.md").write_text(text)
+    atomic_write_text(args.out / "compare.md", text)
     write_plot(report, args.out / "compare.png")
     print(text)
     print(f"wrote {args.out / 'compare.md'}, {args.out / 'compare.json'} and {args.out / 'compare.png'} "
@@ -402,5 +403,7 @@ def main(argv=None) -> int:
     return 0
 
 
-if __name__ == "__main__":
-    raise SystemExit(main())
+if __name__ == "__main__":  # ``python -m cosim.compare`` is ``ehw compare`` (input checks, lock)
+    from cosim.cli import main as ehw
+
+    raise SystemExit(ehw(["compare", *sys.argv[1:]]))

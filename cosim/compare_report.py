@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from cosim.runs import atomic_savefig
 from cosim.paper import PAPER_OFFLINE, PAPER_ONLINE
 
 PAPER = {"online": PAPER_ONLINE, "offline": PAPER_OFFLINE}
@@ -197,6 +198,6 @@ def write_plot(report: dict, path: Path) -> Path:
     ax.legend(fontsize=7, loc="upper left")
     fig.tight_layout()
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path)
+    atomic_savefig(fig, path)
     plt.close(fig)
     return path
