@@ -72,7 +72,6 @@ def resolve_hdl_settings(args) -> dict:
     """The HDL settings of a run, option > environment > default, each checked: ``simulator``,
     ``hdl_sample``, ``waves``, ``clock_hz`` (see :func:`hdl_environment`)."""
     from cosim.cocotb_run import SIMULATORS
-    from cosim.hardware_time import CLOCK_HZ
 
     simulator = getattr(args, "simulator", None) or _from_env("EHW_SIM", str, "") or "verilator"
     if simulator not in SIMULATORS:
@@ -91,12 +90,13 @@ def resolve_hdl_settings(args) -> dict:
     clock = getattr(args, "clock_hz", None)
     if clock is not None and not (math.isfinite(clock) and clock > 0):
         raise UserError(f"--clock-hz must be a positive frequency in Hz, got {clock!r}")
-    if clock is None:
-        clock = _from_env("EHW_CLOCK_HZ", _positive_hz, "not a positive frequency in Hz") or CLOCK_HZ
+    if clock is None:  # None: the measured Fmax of results/fpga.json, else the named default
+        clock = _from_env("EHW_CLOCK_HZ", _positive_hz, "not a positive frequency in Hz")
     p_max = _from_env("EHW_SYSTEM_P_MAX", _count, "a population RAM depth")
     if p_max == 0:
         raise UserError("environment variable EHW_SYSTEM_P_MAX=0: a population RAM depth must be positive")
-    return {"simulator": simulator, "hdl_sample": sample, "waves": waves, "clock_hz": float(clock)}
+    return {"simulator": simulator, "hdl_sample": sample, "waves": waves,
+            "clock_hz": None if clock is None else float(clock)}
 
 
 @contextlib.contextmanager
@@ -104,7 +104,9 @@ def hdl_environment(settings: dict):
     """The resolved settings in the process environment while a command runs (the backends read
     them there, and the cocotb simulator process inherits them); the old values come back after."""
     values = {"EHW_SIM": settings["simulator"], "EHW_HDL_SAMPLE": str(settings["hdl_sample"]),
-              "WAVES": "1" if settings["waves"] else "0", "EHW_CLOCK_HZ": repr(settings["clock_hz"])}
+              "WAVES": "1" if settings["waves"] else "0"}
+    if settings["clock_hz"] is not None:  # else cosim.hardware_time.measured_clock decides
+        values["EHW_CLOCK_HZ"] = repr(settings["clock_hz"])
     saved = {k: os.environ.get(k) for k in values}
     os.environ.update(values)
     try:
@@ -128,8 +130,8 @@ def _add_hdl_options(p) -> None:
     p.add_argument("--waves", action=argparse.BooleanOptionalAction, default=None,
                    help="dump the HDL simulation's waveforms (default: $WAVES, else off)")
     p.add_argument("--clock-hz", type=float, default=None, metavar="HZ",
-                   help="FPGA clock of the hardware-time figures (default: $EHW_CLOCK_HZ, else 12e6, "
-                        "the iCEBreaker's)")
+                   help="FPGA clock of the hardware-time figures (default: $EHW_CLOCK_HZ, else the "
+                        "measured Fmax in results/fpga.json, else 12e6, the iCEBreaker's)")
 
 
 def _add_common(p, *, seed: bool = True, out_help: str = "", resume: bool = True,
