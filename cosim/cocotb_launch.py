@@ -19,7 +19,7 @@ from pathlib import Path
 from cosim.amaranth_backend import SAMPLE_ENV
 from cosim.cocotb_online import CONFIG_ENV, OPTIONS_ENV
 from cosim.cocotb_run import REPO_ROOT, SIM_BUILD, icarus_time_zero_fix, run_cocotb, simulator_default
-from cosim.hardware_time import clock_hz_default, hardware_line
+from cosim.hardware_time import hardware_line
 from ga.motions import DEFAULT_DISTANCE_RULE
 
 TOPLEVEL = "system_top"
@@ -60,8 +60,9 @@ def run_online_cocotb(config, out: Path | str, *, resume: bool = False, plots: b
     # one folder per build: runs may overlap
     source = write_system_verilog(SIM_BUILD / f"{build_name}_verilog", distance_rule=rule)
     options = {"out": str(out), "resume": resume, "plots": plots, "progress": progress}
-    env = {CONFIG_ENV: json.dumps(config.to_dict()), OPTIONS_ENV: json.dumps(options),
-           "EHW_CLOCK_HZ": str(clock_hz if clock_hz is not None else clock_hz_default())}
+    env = {CONFIG_ENV: json.dumps(config.to_dict()), OPTIONS_ENV: json.dumps(options)}
+    if clock_hz is not None:  # else the run in the simulator finds the measured clock itself
+        env["EHW_CLOCK_HZ"] = str(clock_hz)
     if sample is not None:  # spot-check mode (cosim.amaranth_backend.HDLEvaluatorBoard)
         env[SAMPLE_ENV] = str(int(sample))
     run_cocotb(
