@@ -403,7 +403,5 @@ def main(argv=None) -> int:
     return 0
 
 
-if __name__ == "__main__":  # ``python -m cosim.compare`` is ``ehw compare`` (input checks, lock)
-    from cosim.cli import main as ehw
-
-    raise SystemExit(ehw(["compare", *sys.argv[1:]]))
+if __name__ == "__main__":  # ``ehw compare`` adds the input checks and the lock
+    raise SystemExit(main())

@@ -470,11 +470,3 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     parser.add_argument("--table", nargs="+", type=Path, metavar="SUMMARY",
                         help="print the Markdown table of these summary.json files and exit")
     return parser
-
-
-if __name__ == "__main__":  # ``python -m cosim.offline`` is ``ehw offline``
-    import sys
-
-    from cosim.cli import main
-
-    raise SystemExit(main(["offline", *sys.argv[1:]]))

@@ -329,9 +329,3 @@ def make_run(config: OnlineConfig, backend: str = "reference", out: Path | None 
             raise CheckpointError("--resume needs an output directory holding checkpoint.json")
         run.load_state(load_checkpoint(ckpt, CHECKPOINT_KIND, config.to_dict()))
     return run
-
-
-if __name__ == "__main__":  # ``python -m cosim.online`` is ``ehw sim``
-    from cosim.cli import main
-
-    raise SystemExit(main(["sim", *sys.argv[1:]]))

@@ -99,7 +99,7 @@ def config_from_args(args) -> OnlineConfig:
 
 def build_parser() -> argparse.ArgumentParser:
     return add_arguments(argparse.ArgumentParser(
-        prog="python -m cosim.online", description="The on-line model-based experiment: one robot lifetime "
+        prog="python -m cosim.online_cli", description="The on-line model-based experiment: one robot lifetime "
         "(paper section 5.2, SPEC section 7)."))
 
 
@@ -138,7 +138,5 @@ def main(argv=None) -> int:
         return _error(exc)
 
 
-if __name__ == "__main__":  # ``python -m cosim.online_cli`` is ``ehw sim``
-    from cosim.cli import main
-
-    raise SystemExit(main(["sim", *sys.argv[1:]]))
+if __name__ == "__main__":  # ``python -m cosim.online_cli``; ``ehw sim`` adds run folders and checks
+    raise SystemExit(main())

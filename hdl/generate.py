@@ -87,9 +87,7 @@ def run_from_args(args) -> int:
     return 0
 
 
-if __name__ == "__main__":  # ``python -m hdl.generate`` is ``ehw verilog``
-    import sys
+if __name__ == "__main__":  # the module alone; ``ehw verilog`` adds the input checks and the lock
+    import argparse
 
-    from cosim.cli import main
-
-    raise SystemExit(main(["verilog", *sys.argv[1:]]))
+    raise SystemExit(run_from_args(add_arguments(argparse.ArgumentParser(prog="python -m hdl.generate")).parse_args()))

@@ -301,9 +301,7 @@ def run_from_args(args) -> int:
     return 0
 
 
-if __name__ == "__main__":  # ``python -m sim_world.baseline`` is ``ehw baseline``
-    import sys
+if __name__ == "__main__":  # the module alone; ``ehw baseline`` adds the input checks and the lock
+    import argparse
 
-    from cosim.cli import main
-
-    raise SystemExit(main(["baseline", *sys.argv[1:]]))
+    raise SystemExit(run_from_args(add_arguments(argparse.ArgumentParser(prog="python -m sim_world.baseline")).parse_args()))

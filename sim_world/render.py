@@ -152,9 +152,7 @@ def run_from_args(args) -> int:
     return 0
 
 
-if __name__ == "__main__":  # ``python -m sim_world.render`` is ``ehw arena``
-    import sys
+if __name__ == "__main__":  # the module alone; ``ehw arena`` adds the input checks and the lock
+    import argparse
 
-    from cosim.cli import main
-
-    raise SystemExit(main(["arena", *sys.argv[1:]]))
+    raise SystemExit(run_from_args(add_arguments(argparse.ArgumentParser(prog="python -m sim_world.render")).parse_args()))
