@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as _dt
-import importlib
 import json
 import math
 import sys
@@ -19,46 +18,28 @@ from cosim.runs import atomic_write_json, open_run
 
 # -- sim: the on-line experiment ------------------------------------------------------------------
 
-# The on-line command line lives with the experiment: cosim.online_cli (add_arguments,
-# config_from_args) where the checkout has it, else cosim.online's build_parser.
+# The on-line command line lives with the experiment (cosim.online_cli: add_arguments,
+# config_from_args); the reporting in cosim.online_report; the cocotb launcher in
+# cosim.cocotb_launch (imported when used: it brings cocotb's runner).
 
 
 def _online_cli():
-    try:
-        module = importlib.import_module("cosim.online_cli")
-    except ModuleNotFoundError as exc:
-        if exc.name != "cosim.online_cli":
-            raise
-        from cosim import online
+    from cosim import online_cli
 
-        def add_arguments(p):
-            p._add_container_actions(online.build_parser())
-            return p
-
-        return add_arguments, online.config_from_args
-    return module.add_arguments, module.config_from_args
+    return online_cli.add_arguments, online_cli.config_from_args
 
 
 def _cocotb_launcher():
-    """``run_online_cocotb`` (the run inside a cocotb test on the Verilog), from the module that
-    starts the simulator: cosim.cocotb_launch where the checkout has it, else cosim.cocotb_backend."""
-    for name in ("cosim.cocotb_launch", "cosim.cocotb_backend"):
-        try:
-            return importlib.import_module(name).run_online_cocotb
-        except (ModuleNotFoundError, AttributeError) as exc:
-            if isinstance(exc, ModuleNotFoundError) and exc.name != name:
-                raise
-    raise ImportError("no module of this checkout provides run_online_cocotb")
+    """``run_online_cocotb``: the run inside a cocotb test on the Verilog."""
+    from cosim.cocotb_launch import run_online_cocotb
+
+    return run_online_cocotb
 
 
 def _online_reporting():
-    try:
-        report = importlib.import_module("cosim.online_report")
-    except ModuleNotFoundError as exc:
-        if exc.name != "cosim.online_report":
-            raise
-        from cosim import online as report
-    return report.write_results, report.summary_table
+    from cosim import online_report
+
+    return online_report.write_results, online_report.summary_table
 
 
 SIM_DEST_OF = {"n_targets": "targets", "distance_rule": "distance"}
