@@ -41,34 +41,21 @@ class BoardMismatch(AssertionError):
     """An HDL board disagreed with the reference model."""
 
 
-class AmaranthSystem:
-    """One SystemTop in one Simulator, kept alive across calls; ``call(job)`` runs a coroutine
-    function ``job(host)`` in the simulation and returns its result."""
+class SimulatorJobs:
+    """One Amaranth Simulator kept alive across calls: a serving testbench runs *jobs*
+    (coroutines) put in its slot by ``call``, waiting ``IDLE_S`` between them. Subclasses build
+    ``self.sim`` with ``add_testbench(self._serve)`` and set up their host in ``_attach(ctx)``."""
 
-    def __init__(self, reflex: bool = True, vcd: str | None = None, distance_rule: str = DEFAULT_DISTANCE_RULE):
-        from amaranth.sim import Simulator
+    _job = None
+    _finished = False
+    _result = None
+    _error: BaseException | None = None
 
-        from hdl.system_top import SystemHost, SystemTop
-
-        self.dut = SystemTop(distance_rule=distance_rule)
-        self.pins = AmaranthPins(self.dut)
-        self.host = SystemHost(self.pins)
-        self.sim = Simulator(self.dut)
-        self.sim.add_clock(SIM_PERIOD_S)
-        self.sim.add_testbench(self._serve)
-        self._job = None
-        self._finished = False
-        self._result = None
-        self._error: BaseException | None = None
-        self._vcd = None
-        if vcd:
-            self._vcd = self.sim.write_vcd(vcd)
-            self._vcd.__enter__()
-        self.call(self.host.boot)
-        self.host.set_reflex(reflex)
+    def _attach(self, ctx) -> None:
+        """Called once with the serving testbench's context, before the first job."""
 
     async def _serve(self, ctx) -> None:
-        self.pins.ctx = ctx
+        self._attach(ctx)
         while True:
             if self._job is None:
                 await ctx.delay(IDLE_S)
@@ -92,6 +79,32 @@ class AmaranthSystem:
         if self._error is not None:
             raise self._error
         return self._result
+
+
+class AmaranthSystem(SimulatorJobs):
+    """One SystemTop in one Simulator, kept alive across calls; ``call(job)`` runs a coroutine
+    function ``job(host)`` in the simulation and returns its result."""
+
+    def __init__(self, reflex: bool = True, vcd: str | None = None, distance_rule: str = DEFAULT_DISTANCE_RULE):
+        from amaranth.sim import Simulator
+
+        from hdl.system_top import SystemHost, SystemTop
+
+        self.dut = SystemTop(distance_rule=distance_rule)
+        self.pins = AmaranthPins(self.dut)
+        self.host = SystemHost(self.pins)
+        self.sim = Simulator(self.dut)
+        self.sim.add_clock(SIM_PERIOD_S)
+        self.sim.add_testbench(self._serve)
+        self._vcd = None
+        if vcd:
+            self._vcd = self.sim.write_vcd(vcd)
+            self._vcd.__enter__()
+        self.call(self.host.boot)
+        self.host.set_reflex(reflex)
+
+    def _attach(self, ctx) -> None:
+        self.pins.ctx = ctx
 
     def close(self) -> None:
         if self._vcd is not None:

@@ -11,11 +11,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from cosim.amaranth_backend import IDLE_S, SIM_PERIOD_S, BoardMismatch
+from cosim.amaranth_backend import SIM_PERIOD_S, BoardMismatch, SimulatorJobs
 from cosim.boards import LearnResult, ReferenceLearningBoard
 
 
-class AmaranthLearningBoard:
+class AmaranthLearningBoard(SimulatorJobs):
     def __init__(self, config, seed: int, population, reflex: bool = True,
                  distance_rule: str = "covered", check: bool = True):
         from amaranth.sim import Simulator
@@ -32,36 +32,11 @@ class AmaranthLearningBoard:
         self.sim.add_testbench(self._serve)
         self._host_class = LearnerSimHost
         self.host = None
-        self._job = None
-        self._finished = False
-        self._error = None
-        self._result = None
         self.cycles = 0
         self.call(self._boot, int(seed), np.asarray(population))
 
-    async def _serve(self, ctx):
+    def _attach(self, ctx) -> None:
         self.host = self._host_class(ctx, self.dut)
-        while True:
-            if self._job is None:
-                await ctx.delay(IDLE_S)
-                continue
-            job, self._job = self._job, None
-            try:
-                self._result = await job()
-            except BaseException as error:
-                self._error = error
-            self._finished = True
-
-    def call(self, job, *args):
-        async def bound():
-            return await job(*args)
-
-        self._job, self._finished, self._error = bound, False, None
-        while not self._finished:
-            self.sim.advance()
-        if self._error is not None:
-            raise self._error
-        return self._result
 
     async def _boot(self, seed, population):
         await self.host.wait_ready()
