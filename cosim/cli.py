@@ -156,11 +156,11 @@ def _baseline_parser(p) -> None:
 def cmd_baseline(args, extras: dict, sub=None) -> int:
     from sim_world import baseline
 
-    if args.seeds < 0 or args.first_seed < 0 or args.max_leg_steps < 1 or \
-            not (math.isfinite(args.tune) and args.tune >= 0):
-        raise UserError("--seeds and --first-seed must be >= 0, --max-leg-steps >= 1 and --tune a finite "
-                        f"number of seconds >= 0; got {args.seeds!r}, {args.first_seed!r}, "
-                        f"{args.max_leg_steps!r}, {args.tune!r}")
+    for name, least in (("seeds", 0), ("first_seed", 0), ("max_leg_steps", 1)):
+        if getattr(args, name) < least:
+            raise UserError(f"--{name.replace('_', '-')} must be at least {least}, got {getattr(args, name)!r}")
+    if not (math.isfinite(args.tune) and args.tune >= 0):
+        raise UserError(f"--tune must be a finite number of seconds >= 0, got {args.tune!r}")
     from sim_world.arena import load_arena
 
     load_arena(args.arena)
