@@ -43,7 +43,7 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
     p.add_argument("--arena", default="default", metavar="NAME|FILE", help="arena name or .json path")
     p.add_argument("--limit-seeds", action="append", default=[], metavar="ROW=N",
                    help="run only the first N seeds for ROW, a method or method/shaping "
-                        "(e.g. offline=5,q-learning/unshaped=10): slow rows on fewer seeds (repeatable)")
+                        "(e.g. offline=5,q-learning/unshaped=10; 0: none): slow rows on fewer seeds (repeatable)")
     p.add_argument("--max-interactions", type=int, default=None, metavar="N",
                    help="cap of an RL lifetime (default: 100,000, as the on-line run's)")
     p.add_argument("--generations-cap", type=int, default=None, metavar="G",
@@ -134,9 +134,9 @@ def limits_of(items: list[str]) -> dict[str, int]:
         row, sep, n = item.strip().partition("=")
         if not item.strip():
             continue
-        if not sep or not n.strip().isdigit() or int(n) < 1 or not _row_known(row.strip()):
-            raise UserError(f"--limit-seeds wants ROW=N with ROW a method or method/shaping and N >= 1, "
-                            f"got {item.strip()!r}")
+        if not sep or not n.strip().isdigit() or not _row_known(row.strip()):
+            raise UserError(f"--limit-seeds wants ROW=N with ROW a method or method/shaping and N >= 0 "
+                            f"(0: the row is not run), got {item.strip()!r}")
         limits[row.strip()] = int(n)
     return limits
 
