@@ -53,6 +53,7 @@ import numpy as np
 from cosim.compare_options import (  # noqa: F401  (online_options: re-exported)
     COMPARE_ROOT, add_arguments, check_args, check_resumed, online_options, read_report, recorded_options,
 )
+from cosim.errors import UserError
 from cosim.runs import atomic_write_text
 from cosim.compare_report import (  # noqa: F401  (re-exported: the names of cosim.compare)
     ADAPT_WINDOW, DEEP, DEFAULT_METHODS, METHODS, N_TARGETS, NAMES, OPTIONAL, PAPER, ROWS, SHAPINGS, TABULAR,
@@ -253,7 +254,11 @@ def run_from_args(args) -> int:
             check_resumed(args, folder)
         if not args.adaptation_only:
             write_config(folder, recorded_options(args), {}, "compare")
-        report = _compare(args, folder)
+        try:
+            report = _compare(args, folder)
+        except UserError:  # refused (e.g. no Dask scheduler): no folder stays; an interrupted
+            run_dir.discard()  # one (Ctrl-C, kill) stays, for --resume
+            raise
         run_dir.remove_stale()
     print(f"wrote {folder / 'compare.md'}, {folder / 'compare.json'} and {folder / 'compare.png'} "
           f"({report['wall_time_s']:.0f} s)")
@@ -262,7 +267,6 @@ def run_from_args(args) -> int:
 
 def _compare(args, folder: Path) -> dict:
     """Run the lifetimes of checked ``args`` (cached ones come from the cache); write the tables."""
-    from cosim.errors import UserError
     from cosim.sweep import Cache, executor, run_sweep
 
     seeds, online = args.seed_list, args.online_fields

@@ -265,16 +265,22 @@ class RunFolder:
         try:
             if exc_type is not None and self.fresh and not (
                     self._keep_marker and (self.path / self._keep_marker).exists()):
-                # A fresh run that failed before its first checkpoint leaves nothing to resume:
-                # no half-made folder, and `latest` points where it did.
-                shutil.rmtree(self.path, ignore_errors=True)
-                if self._root is not None:
-                    if self._previous is not None:
-                        write_latest(self._root, self._previous)
-                    else:
-                        (self._root / LATEST).unlink(missing_ok=True)
+                # A fresh run that failed before its first checkpoint leaves nothing to resume.
+                self.discard()
         finally:
             self.lock.release()
+
+    def discard(self) -> None:
+        """Remove a fresh run's folder (no half-made folder stays) and point `latest` where it
+        pointed before."""
+        if not self.fresh:
+            return
+        shutil.rmtree(self.path, ignore_errors=True)
+        if self._root is not None:
+            if self._previous is not None:
+                write_latest(self._root, self._previous)
+            else:
+                (self._root / LATEST).unlink(missing_ok=True)
 
     def close(self) -> None:
         self.lock.release()

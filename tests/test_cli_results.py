@@ -166,6 +166,34 @@ def test_compare_resume_and_force(ehw, tmp_path):
     assert (tmp_path / "run/compare.json").exists()
 
 
+def test_an_interrupted_comparison_resumes_and_a_refused_one_leaves_nothing(ehw, tmp_path, monkeypatch):
+    import cosim.sweep
+
+    root = tmp_path / "results/compare"
+    assert ehw("compare", *SMALL)[0] == 0
+    done = (root / LATEST).resolve()
+
+    def unreachable(*args, **kwargs):
+        raise ConnectionError("cannot reach the Dask scheduler at 'tcp://nowhere:1' (a test)")
+
+    real_executor, real = cosim.sweep.executor, cosim.sweep.run_sweep
+    monkeypatch.setattr(cosim.sweep, "executor", unreachable)
+    _one_error(*ehw("compare", *SMALL, "--seeds", "2", "--cluster", "tcp://nowhere:1")[::2], "--cluster", "nowhere")
+    assert _runs(root) == [done] and (root / LATEST).resolve() == done
+    monkeypatch.setattr(cosim.sweep, "executor", real_executor)
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cosim.sweep, "run_sweep", interrupted)
+    assert ehw("compare", *SMALL, "--seeds", "2")[0] == 130
+    stopped = (root / LATEST).resolve()
+    assert stopped != done and (stopped / "config.toml").is_file() and not (stopped / "compare.json").exists()
+    monkeypatch.setattr(cosim.sweep, "run_sweep", real)
+    assert ehw("compare", "--resume", "--quiet")[0] == 0  # the interrupted one, under its config
+    assert json.loads((stopped / "compare.json").read_text())["seeds"] == [1, 2]
+
+
 def test_compare_reuse_and_render_read_an_earlier_comparison(ehw, tmp_path):
     assert ehw("compare", *SMALL, "--out", "first")[0] == 0
     assert ehw("compare", *SMALL, "--methods", "baseline", "--reuse", "first", "--out", "second")[0] == 0
