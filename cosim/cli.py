@@ -200,11 +200,11 @@ RESUMED_ROOTS = {"offline": RESULTS / "model_free", "compare": COMPARE_ROOT}
 COMMANDS = {
     "sim": (sim_parser, cmd_sim, "the on-line model-based experiment: one robot lifetime (paper 5.2)"),
     "offline": (offline_parser, cmd_offline, "the off-line model-free experiment (paper 5.1)"),
-    "compare": (_compare_parser, cmd_compare, "every method (on-line, off-line, baseline, RL peers) over N seeds -> compare.md/.json/.png"),
+    "compare": (_compare_parser, cmd_compare, "every method (on-line, off-line, baseline, RL peers) over N seeds -> results/compare/<date>-<time>-seeds<A>-<B>/compare.md/.json/.png"),
     "verilog": (_verilog_parser, cmd_verilog, "the Verilog of the EHW blocks -> build/verilog/"),
     "bench": (_bench_parser, cmd_bench, "speed figures -> results/bench/<date>-<time>/bench.json, merged into results/bench.json"),
     "arena": (_arena_parser, cmd_arena, "render arenas -> results/arena/<date>-<time>/arena_<name>.png"),
-    "baseline": (_baseline_parser, cmd_baseline, "the hand-written reactive baseline through the 64 legs"),
+    "baseline": (_baseline_parser, cmd_baseline, "the hand-written reactive baseline through the 64 legs -> results/baseline/<date>-<time>-seeds<A>-<B>/"),
 }
 _SUBPARSERS: dict[str, argparse.ArgumentParser] = {}
 

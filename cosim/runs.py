@@ -94,7 +94,7 @@ def merge_json(path, new: dict, what: str = "--figures") -> dict:
         fcntl.flock(fd, fcntl.LOCK_EX)  # blocking: the critical section is one read and one write
         merged = read_json_object(path, what) if path.exists() else {}
         merged.update(new)
-        atomic_write_text(path, json.dumps(merged, indent=2, sort_keys=True, allow_nan=False) + "\n")
+        atomic_write_text(path, json.dumps(merged, indent=2, sort_keys=True) + "\n")
         return merged
     finally:
         os.close(fd)

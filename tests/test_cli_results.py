@@ -343,3 +343,22 @@ def test_limit_seeds_parse_or_raise(items):
     except UserError:
         return
     assert all(isinstance(n, int) and n >= 0 for n in limits.values())
+
+
+@settings(max_examples=100, deadline=None)
+@given(text=st.one_of(st.text(max_size=30), st.recursive(
+    st.one_of(st.none(), st.booleans(), st.integers(), st.text(max_size=4)),
+    lambda inner: st.one_of(st.lists(inner, max_size=3), st.dictionaries(st.text(max_size=4), inner, max_size=3)),
+    max_leaves=6).map(json.dumps)))
+def test_bench_figures_loader_loads_or_raises(tmp_path_factory, text):
+    from cosim.errors import UserError
+    from cosim.runs import merge_json
+
+    path = tmp_path_factory.mktemp("bench") / "bench.json"
+    path.write_text(text)
+    try:
+        merged = merge_json(path, {"new_key": 1})
+    except UserError:
+        assert path.read_text() == text  # a file that is not figures is left as it was
+        return
+    assert merged["new_key"] == 1 and json.loads(path.read_text()) == merged
