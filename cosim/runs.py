@@ -10,6 +10,8 @@
 - **A lock.** ``DIR/.lock`` is held with ``flock`` for the whole run: a second run on the folder is
   refused, naming the folder and the process that holds it. The kernel drops the lock when that
   process ends, however it ends (``kill -9`` too), so a stale lock is simply taken over.
+- **A merged file** (``results/bench.json``): :func:`merge_json` updates it under its own lock,
+  which a concurrent merge waits for, so two runs' figures both land.
 - **Atomic writes.** :func:`atomic_write_text` / :func:`atomic_savefig` write a temporary file in
   the same folder, fsync it and ``os.replace`` it in: a run killed mid-write leaves the previous
   file whole, never a truncated one.
@@ -129,9 +131,9 @@ class RunLock:
     """An exclusive ``flock`` on ``folder/.lock``; refused with a :class:`RunFolderError` that
     names the folder and the holder while another process holds it."""
 
-    def __init__(self, folder: Path, name: str = LOCK_NAME):
+    def __init__(self, folder: Path):
         self.folder = Path(folder)
-        self.path = self.folder / name
+        self.path = self.folder / LOCK_NAME
         self._fd: int | None = None
 
     def acquire(self) -> "RunLock":
