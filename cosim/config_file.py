@@ -51,7 +51,14 @@ def _allowed(tp) -> tuple[tuple[type, ...], bool]:
 
 
 def check_value(value, tp, what: str):
-    """``value`` if it has type ``tp`` (an int for a float is fine), else a ConfigFileError."""
+    """``value`` if it has type ``tp`` (an int for a float is fine; ``list[str]``: a list of
+    strings, or one string), else a ConfigFileError."""
+    if typing.get_origin(tp) is list:
+        (item,) = typing.get_args(tp)
+        items = [value] if isinstance(value, str) else value
+        if not isinstance(items, list):
+            raise ConfigFileError(f"{what} must be a list, got {type(value).__name__} {value!r}")
+        return [check_value(v, item, f"{what} item {n}") for n, v in enumerate(items)]
     plain, nullable = _allowed(tp)
     if value is None:
         if nullable:
@@ -133,6 +140,8 @@ def _toml_value(value) -> str:
         return repr(value)
     if isinstance(value, str):
         return json.dumps(value)  # a TOML basic string
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
     raise TypeError(f"no TOML form for {value!r}")
 
 

@@ -207,9 +207,9 @@ def cmd_offline(args, extras: dict, sub=None) -> int:
 
     if args.table:
         return print_table(args.table)
-    for name in ("generations_cap", "workers", "max_leg_steps"):
-        if getattr(args, name) < 1:
-            raise UserError(f"--{name.replace('_', '-')} must be at least 1, got {getattr(args, name)!r}")
+    for name, least in (("generations_cap", 1), ("workers", 1), ("max_leg_steps", 1), ("seed", 0)):
+        if getattr(args, name) < least:
+            raise UserError(f"--{name.replace('_', '-')} must be at least {least}, got {getattr(args, name)!r}")
     from sim_world.arena import load_arena
 
     load_arena(args.arena)

@@ -10,6 +10,8 @@
 - **A lock.** ``DIR/.lock`` is held with ``flock`` for the whole run: a second run on the folder is
   refused, naming the folder and the process that holds it. The kernel drops the lock when that
   process ends, however it ends (``kill -9`` too), so a stale lock is simply taken over.
+- **A merged file** (``results/bench.json``): :func:`merge_json` updates it under its own lock,
+  which a concurrent merge waits for, so two runs' figures both land.
 - **Atomic writes.** :func:`atomic_write_text` / :func:`atomic_savefig` write a temporary file in
   the same folder, fsync it and ``os.replace`` it in: a run killed mid-write leaves the previous
   file whole, never a truncated one.
@@ -83,6 +85,34 @@ def atomic_savefig(fig, path, **kwargs) -> Path:
     return atomic_write_bytes(path, buffer.getvalue())
 
 
+def merge_json(path, new: dict, what: str = "--figures") -> dict:
+    """Update the JSON object in ``path`` with ``new`` (keys not in ``new`` kept) and write it
+    atomically, under a lock (``.<name>.lock`` beside it) that a concurrent merge waits for: two
+    merges at once both land. A file that holds no JSON object is a UserError."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd = os.open(path.parent / f".{path.name}.lock", os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX)  # blocking: the critical section is one read and one write
+        merged = read_json_object(path, what) if path.exists() else {}
+        merged.update(new)
+        atomic_write_text(path, json.dumps(merged, indent=2, sort_keys=True) + "\n")
+        return merged
+    finally:
+        os.close(fd)
+
+
+def read_json_object(path, what: str) -> dict:
+    """The JSON object in ``path``; a UserError naming ``what`` and the file otherwise."""
+    try:
+        data = json.loads(Path(path).read_text())
+    except (OSError, ValueError) as exc:
+        raise UserError(f"{what} {str(path)!r} holds no JSON object to merge into ({exc})") from None
+    if not isinstance(data, dict):
+        raise UserError(f"{what} {str(path)!r} holds no JSON object to merge into (a {type(data).__name__})")
+    return data
+
+
 # -- the lock ------------------------------------------------------------------------------------
 
 
@@ -148,8 +178,16 @@ def result_files(folder: Path) -> list[Path]:
                   if p.is_file() and p.suffix in RESULT_SUFFIXES and p.name != LOCK_NAME)
 
 
-def _holds_run(folder: Path) -> list[str]:
-    return [name for name in RUN_MARKERS if (folder / name).exists()]
+def _holds_run(folder: Path, markers=RUN_MARKERS) -> list[str]:
+    """The marker files (names or glob patterns) of a run that ``folder`` holds."""
+    return sorted({p.name for pattern in markers for p in folder.glob(pattern) if p.is_file()})
+
+
+def _other_runs(folder: Path) -> list[Path]:
+    """Run folders or results roots inside ``folder`` (a lock or a ``latest`` pointer below it):
+    ``--force`` replaces one run's files, never a tree of runs such as ``results/``."""
+    locks = [p for p in folder.rglob(LOCK_NAME) if p.parent != folder]
+    return sorted(locks + list(folder.rglob(LATEST)))
 
 
 def read_latest(root: Path) -> Path | None:
@@ -184,9 +222,9 @@ def write_latest(root: Path, folder: Path) -> Path:
     return pointer
 
 
-def _fresh_folder(root: Path, seed: int | None) -> Path:
+def _fresh_folder(root: Path, label: str | None) -> Path:
     stamp = _dt.datetime.now().strftime("%Y%m%d-%H%M%S")
-    base = stamp + ("" if seed is None else f"-seed{seed}")
+    base = stamp + ("" if not label else f"-{label}")
     for n in range(1, 1000):
         folder = root / (base if n == 1 else f"{base}-{n}")
         try:
@@ -212,30 +250,39 @@ class RunFolder:
     """The folder of one run, locked while in use: ``with open_run(...) as run_dir: ...``."""
 
     def __init__(self, path: Path, lock: RunLock, fresh: bool, resumed: bool,
-                 root: Path | None = None, previous: Path | None = None):
+                 root: Path | None = None, previous: Path | None = None,
+                 keep_marker: str | None = "checkpoint.json"):
         self.path = Path(path)
         self.lock = lock
         self.fresh = fresh
         self.resumed = resumed
         self.started_ns = time.time_ns()
         self._root, self._previous = root, previous  # where `latest` pointed before
+        self._keep_marker = keep_marker  # a failed fresh run that wrote it is kept (resumable)
 
     def __enter__(self) -> "RunFolder":
         return self
 
     def __exit__(self, exc_type, exc, tb):
         try:
-            if exc_type is not None and self.fresh and not (self.path / "checkpoint.json").exists():
-                # A fresh run that failed before its first checkpoint leaves nothing to resume:
-                # no half-made folder, and `latest` points where it did.
-                shutil.rmtree(self.path, ignore_errors=True)
-                if self._root is not None:
-                    if self._previous is not None:
-                        write_latest(self._root, self._previous)
-                    else:
-                        (self._root / LATEST).unlink(missing_ok=True)
+            if exc_type is not None and self.fresh and not (
+                    self._keep_marker and (self.path / self._keep_marker).exists()):
+                # A fresh run that failed before its first checkpoint leaves nothing to resume.
+                self.discard()
         finally:
             self.lock.release()
+
+    def discard(self) -> None:
+        """Remove a fresh run's folder (no half-made folder stays) and point `latest` where it
+        pointed before."""
+        if not self.fresh:
+            return
+        shutil.rmtree(self.path, ignore_errors=True)
+        if self._root is not None:
+            if self._previous is not None:
+                write_latest(self._root, self._previous)
+            else:
+                (self._root / LATEST).unlink(missing_ok=True)
 
     def close(self) -> None:
         self.lock.release()
@@ -256,13 +303,18 @@ class RunFolder:
 
 
 def open_run(out, root, seed: int | None = None, *, resume: bool = False, force: bool = False,
-             checkpoint: str | None = "checkpoint.json") -> RunFolder:
+             checkpoint: str | None = "checkpoint.json", markers=RUN_MARKERS,
+             label: str | None = None) -> RunFolder:
     """The locked folder of a run (see the module docstring).
 
-    ``out``: the ``--out`` folder or None (a fresh folder under ``root``, or with ``resume`` the
-    one ``root/latest`` points at). ``checkpoint``: the file a resume needs (None: the command
-    has no checkpoints and cannot resume).
+    ``out``: the ``--out`` folder or None (a fresh folder under ``root``, named
+    ``<date>-<time>-<label>``, the label ``seed<S>`` by default; or with ``resume`` the one
+    ``root/latest`` points at). ``checkpoint``: the file a resume needs (None: the command has no
+    checkpoints and cannot resume). ``markers``: the files (names or glob patterns) that show a
+    folder holds a run of this command.
     """
+    if label is None and seed is not None:
+        label = f"seed{seed}"
     if resume and force:
         raise RunFolderError("--resume and --force exclude each other: resume a run, or replace it")
     if resume and checkpoint is None:
@@ -278,7 +330,7 @@ def open_run(out, root, seed: int | None = None, *, resume: bool = False, force:
                                      "which points at no run folder; give --out DIR")
         else:
             _check_writable(root, "results folder")
-            folder, fresh = _fresh_folder(root, seed), True
+            folder, fresh = _fresh_folder(root, label), True
     else:
         folder = Path(out)
         if resume and not folder.is_dir():
@@ -286,16 +338,22 @@ def open_run(out, root, seed: int | None = None, *, resume: bool = False, force:
         _check_writable(folder, "output folder --out")
     lock = RunLock(folder).acquire()
     try:
-        held = _holds_run(folder)
+        held = _holds_run(folder, markers)
         if resume:
             if not (folder / checkpoint).is_file():
                 raise RunFolderError(f"--resume: {str(folder)!r} holds no {checkpoint} to resume from")
         elif held and not force:
+            resume_hint = "--resume to continue it, " if checkpoint is not None else ""
             raise RunFolderError(
-                f"--out {str(folder)!r} already holds a run ({', '.join(held)}): give --resume to "
-                "continue it, --force to replace it, or another --out (without --out every run "
-                "gets a fresh folder)")
+                f"--out {str(folder)!r} already holds a run ({', '.join(held)}): give {resume_hint}"
+                "--force to replace it, or another --out (without --out every run gets a fresh "
+                "folder)")
         elif force:
+            nested = _other_runs(folder)
+            if nested:
+                raise RunFolderError(
+                    f"--force: {str(folder)!r} is not one run's folder, it holds other runs "
+                    f"({str(nested[0])!r}); give the run's own folder as --out")
             for p in result_files(folder):
                 p.unlink(missing_ok=True)
             for d in sorted((p for p in folder.rglob("*") if p.is_dir()), reverse=True):
@@ -310,4 +368,5 @@ def open_run(out, root, seed: int | None = None, *, resume: bool = False, force:
         if fresh:
             shutil.rmtree(folder, ignore_errors=True)
         raise
-    return RunFolder(folder, lock, fresh=fresh, resumed=resume, root=root, previous=previous)
+    return RunFolder(folder, lock, fresh=fresh, resumed=resume, root=root, previous=previous,
+                     keep_marker=checkpoint)

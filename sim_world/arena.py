@@ -486,7 +486,12 @@ def load_arena(name_or_path: str | Path = DEFAULT_ARENA) -> Arena:
         raise ArenaError(f"cannot read arena file {str(path)!r}: {exc.strerror or exc}") from None
     except (ValueError, RecursionError) as exc:  # JSONDecodeError, UnicodeDecodeError
         raise ArenaError(f"arena file {str(path)!r} is not valid JSON: {exc}") from None
-    return arena_from_dict(data, source=str(path))
+    try:
+        return arena_from_dict(data, source=str(path))
+    except ArenaError as exc:  # the message names the field; the line names the file too
+        if str(path) in str(exc):
+            raise
+        raise ArenaError(f"arena file {str(path)!r}: {exc}") from None
 
 
 def save_arena(arena: Arena, path: Path) -> None:

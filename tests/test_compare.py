@@ -21,9 +21,16 @@ from cosim.compare import (
     run_task,
     write_plot,
 )
+from cosim.errors import UserError
 from cosim.sweep import Cache, executor, run_sweep
 from ga.genome import hex_from_rows
 from ga.operators import random_population
+
+
+@pytest.fixture(autouse=True)
+def _in_tmp(tmp_path, monkeypatch):
+    """Each test in a fresh working directory (the comparison's results/compare/ is there)."""
+    monkeypatch.chdir(tmp_path)
 
 
 def _fake(interactions, generations, pop, targets=64):
@@ -90,7 +97,7 @@ def test_methods_and_tasks():
 def test_command_line_errors_are_one_line(capsys):
     assert main(["--methods", "baseline,sarsa"]) == 2
     err = capsys.readouterr().err
-    assert err.startswith("error: unknown method(s) sarsa") and err.count("\n") == 1
+    assert err.startswith("error: --methods: unknown method(s) sarsa") and err.count("\n") == 1
     assert main(["--shaping", "dense"]) == 2
     assert capsys.readouterr().err.startswith("error: --shaping")
 
@@ -102,7 +109,7 @@ def test_online_options_are_typed_checked_and_reported():
         {"distance_rule": "covered", "loop_cycles": 0, "escape": False}
     with pytest.raises(ValueError, match="--distance"):
         online_options(["distance_rule=backward"])
-    with pytest.raises(SystemExit, match="KEY=VALUE"):
+    with pytest.raises(UserError, match="KEY=VALUE"):
         online_options(["no_such_field=1"])
     report = build_report({"online": {1: _fake(9_000, 300, 500)}}, "default", [1])
     report.update(online_distance_rule="covered", online_options={"distance_rule": "covered", "loop_cycles": 0})
@@ -123,8 +130,8 @@ def _figures(path):
 
 
 def test_same_table_on_a_process_pool_and_a_local_dask_cluster(tmp_path):
-    assert main(SMALL + ["--out", str(tmp_path / "pool")]) == 0
-    assert main(SMALL + ["--out", str(tmp_path / "dask"), "--cluster", "local"]) == 0
+    assert main(SMALL + ["--out", str(tmp_path / "pool"), "--cache", "pool_cache"]) == 0
+    assert main(SMALL + ["--out", str(tmp_path / "dask"), "--cache", "dask_cache", "--cluster", "local"]) == 0
     pool, dask = _figures(tmp_path / "pool"), _figures(tmp_path / "dask")
     assert pool == dask
     assert set(pool) == {"baseline", "q-learning/shaped"}
