@@ -83,6 +83,23 @@ def _system_top(clk_freq_hz: float):
     return SystemLinkTop(clk_freq_hz=clk_freq_hz)
 
 
+# The learning engine's lanes in the ulx3s-learner bitstream (docs/learner.md, "Resources and
+# clock": the lanes that fit 80 % of the LFE5U-85F's LUTs, and the build time they cost).
+LEARNER_LANES = 4
+
+
+def learner_config(lanes: int = LEARNER_LANES):
+    """The engine of the ulx3s-learner bitstream: the on-line run's GA (population 500,
+    tournament 20, the default rates) with ``lanes`` lanes."""
+    from ga.hardware_ga import HardwareGAConfig
+    return HardwareGAConfig(population=500, tournament=20, lanes=lanes)
+
+
+def _learner_top(clk_freq_hz: float):
+    from hdl.learner_link import LearnerLinkTop
+    return LearnerLinkTop(clk_freq_hz=clk_freq_hz, config=learner_config())
+
+
 @dataclass(frozen=True)
 class Target:
     """One bitstream: a board top (``rx``/``tx`` UART pins) on an amaranth-boards platform."""
@@ -94,6 +111,8 @@ class Target:
     design: str  # the board top, for the report
     top: Callable[[float], object]  # clk_freq_hz -> the top (a wiring.Component with rx, tx)
     bitstream: str  # file the flow writes (iCE40: .bin for iceprog; ECP5: .bit for openFPGALoader)
+    nextpnr_opts: str = ""  # beyond the flow's own (the report, the seed, --timing-allow-fail)
+    params: Callable[[], dict] | None = None  # design parameters recorded with the build
 
     def make_platform(self):
         module, cls = self.platform.split(":")
@@ -107,6 +126,12 @@ TARGETS = {t.name: t for t in (
            "ice40", "EvaluatorLinkTop(double_buffer=False)", _evaluator_top, f"{BUILD_NAME}.bin"),
     Target("ulx3s-system", "ULX3S", "amaranth_boards.ulx3s:ULX3S_85F_Platform",
            "ecp5", "SystemLinkTop", _system_top, f"{BUILD_NAME}.bit"),
+    Target("ulx3s-learner", "ULX3S", "amaranth_boards.ulx3s:ULX3S_85F_Platform",
+           "ecp5", f"LearnerLinkTop(lanes={LEARNER_LANES})", _learner_top, f"{BUILD_NAME}.bit",
+           # router2: routes the ~40k cells in a fraction of router1's time (same timing report)
+           nextpnr_opts="--router router2",
+           params=lambda: {k: v for k, v in learner_config().to_dict().items()
+                           if k in ("lanes", "population", "tournament")}),
 )}
 
 
@@ -278,7 +303,7 @@ def build(target: Target, build_root: Path | str = BUILD_ROOT, env: dict | None 
     plan = platform.build(
         OnBoard(target.top(clock_hz)), name=BUILD_NAME, build_dir=str(out), do_build=False,
         script_after_synth=f"tee -q -o {stat} stat -json",
-        nextpnr_opts=f"--timing-allow-fail --report {report} --seed {seed}",
+        nextpnr_opts=f"--timing-allow-fail --report {report} --seed {seed} {target.nextpnr_opts}".strip(),
     )
     t0 = time.perf_counter()
     try:
@@ -301,6 +326,7 @@ def build(target: Target, build_root: Path | str = BUILD_ROOT, env: dict | None 
     return {
         "board": target.board,
         "design": target.design,
+        **(target.params() if target.params else {}),
         "part": part_name(platform),
         "fits": True,
         **placed,
@@ -327,7 +353,8 @@ def _unfit_entry(target: Target, platform, out: Path, clock_mhz: float, build_s:
     if used["luts"] <= used["luts_available"]:
         return None
     return {
-        "board": target.board, "design": target.design, "part": part_name(platform), "fits": False,
+        "board": target.board, "design": target.design, **(target.params() if target.params else {}),
+        "part": part_name(platform), "fits": False,
         **used, "ffs": ffs, "fmax_mhz": None, "timing_met": False, "clock_mhz": clock_mhz,
         "bitstream": None,
         "reports": {"yosys_log": str(out / f"{BUILD_NAME}.rpt"), "nextpnr_log": str(out / f"{BUILD_NAME}.tim")},
