@@ -135,8 +135,11 @@ class LearnerLinkTop(_LinkTop):
             m.next = "LearnWait"
         with m.State("LearnWait"):
             with m.If(eng.done):
-                escaped = avoid_en & eng.escape_found
-                pick = lambda name: Mux(escaped, getattr(eng, f"escape_{name}"), getattr(eng, f"best_{name}"))  # noqa: E731
+                # the escape child, when there is one; escaped: it is not the best itself
+                # (ga.hardware_ga: download_index != best_index)
+                found = avoid_en & eng.escape_found
+                escaped = found & (eng.escape_index != eng.best_index)
+                pick = lambda name: Mux(found, getattr(eng, f"escape_{name}"), getattr(eng, f"best_{name}"))  # noqa: E731
                 m.d.sync += [reply.cycles.eq(eng.cycles), reply.index.eq(pick("index")),
                              reply.score.eq(pick("score")), reply.crashes.eq(pick("crashes")),
                              reply.loops.eq(pick("loops")), reply.distance.eq(pick("distance")),

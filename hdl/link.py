@@ -130,7 +130,7 @@ LEARN_REQUEST = data.StructLayout({
     "serial": 8,            # a LEARN whose serial is the last executed one's only re-sends its reply
 })
 LEARN_REPLY = data.StructLayout({
-    "cycles": 32,           # the engine's clock cycles for this learn (start to done)
+    "cycles": 32,           # the engine's busy cycles (its register): ga.hardware_ga.learn_cycles - 1
     "index": 16,            # the download's population slot (READ_GENOME)
     "score": 24,            # its integer score (ga.hardware_ga.score)
     "crashes": 16, "loops": 16, "distance": 16,
