@@ -10,8 +10,9 @@ constraint and reports the achieved Fmax of the clock net. The figures go to
 ``results/fpga_learner.json`` under ``"L<lanes>"``: ``luts`` (TRELLIS_COMB used after packing),
 ``luts_available``, ``brams`` (DP16KD), ``ffs`` (TRELLIS_FF), ``fmax_mhz``, the tools and times.
 
-This is not a bitstream of a board (no UART, no ``ulx3s-learner`` target yet): it measures the
-engine's size and its critical path.
+This is not a bitstream of a board: it measures the engine alone (its size and critical path,
+for any lane count, e.g. to size a build). The board is ``make bitstream FPGA_TARGETS=ulx3s-learner``
+(``hdl.fpga``: the controller board, the engine and the UART link), which ``make bench`` prefers.
 """
 
 from __future__ import annotations
