@@ -305,6 +305,7 @@ def build(target: Target, build_root: Path | str = BUILD_ROOT, env: dict | None 
         script_after_synth=f"tee -q -o {stat} stat -json",
         nextpnr_opts=f"--timing-allow-fail --report {report} --seed {seed} {target.nextpnr_opts}".strip(),
     )
+    commit = source_commit()  # the design was elaborated from this checkout just now
     t0 = time.perf_counter()
     try:
         plan.execute_local(str(out), env=env)
@@ -337,9 +338,23 @@ def build(target: Target, build_root: Path | str = BUILD_ROOT, env: dict | None 
                     "nextpnr_report": str(out / report), "yosys_stat": str(out / stat)},
         "build_s": round(build_s, 1),
         "seed": seed,
+        "commit": commit,
         "tools": tool_versions(target.family, env),
         "built": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
     }
+
+
+def source_commit() -> str:
+    """The checkout's git commit, ``+dirty`` when hdl/, ga/ or the sources differ from it
+    (what a build was made from); ``unknown`` outside a git checkout."""
+    try:
+        head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
+                              timeout=10, cwd=REPO_ROOT).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--", "hdl", "ga"], capture_output=True,
+                               text=True, timeout=10, cwd=REPO_ROOT).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+    return (head + ("+dirty" if dirty else "")) if head else "unknown"
 
 
 def _unfit_entry(target: Target, platform, out: Path, clock_mhz: float, build_s: float, env: dict):
