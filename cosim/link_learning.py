@@ -108,3 +108,25 @@ class LinkLearningBoard:
                                    f"{want_counts} in {want.cycles} (escaped {want.escaped}); downloads "
                                    f"equal: {np.array_equal(want.rows, rows)}")
         return result
+
+
+def make_serial_learning_boards(config, seed: int, population, *, reflex: bool = True,
+                                distance_rule: str = "covered", check: bool = True,
+                                port: str | None = None, baud: float | None = None):
+    """(controller board, learning board) of one ``ulx3s-learner`` board on a serial port
+    (default ``EHW_PORT``, ``EHW_BAUD``), both over the same link: the controller board beside
+    the engine drives the robot with the downloads."""
+    import os
+
+    from cosim.link_boards import BAUD_ENV, PORT_ENV, LinkControllerBoard, _baud_from_env, open_port
+
+    port = port or os.environ.get(PORT_ENV)
+    if not port:
+        raise LinkError(f"the serial learning board needs a port ({PORT_ENV}=/dev/ttyUSB1, {BAUD_ENV}=...)")
+    client = LinkClient(open_port(port, _baud_from_env() if baud is None else baud))
+    client.expect(Design.LEARNER)
+    controller = LinkControllerBoard(client, reflex=reflex, check=check)
+    controller.load(np.zeros(50, dtype=np.uint32))  # the board starts empty, as the reference
+    learning = LinkLearningBoard(client, config, seed, population, reflex=reflex,
+                                 distance_rule=distance_rule, check=check)
+    return controller, learning

@@ -78,3 +78,14 @@ def test_learner_top_over_the_link_equals_the_reference():
     controller = LinkControllerBoard(client, reflex=True, check=True)
     controller.load(second.rows)
     assert [controller.motion(s) for s in (0, 5, 0x80, 0xFF)]  # check=True: the reference's
+
+
+def test_serial_learning_board_errors_name_the_port(monkeypatch):
+    from cosim.link_learning import make_serial_learning_boards
+
+    population = random_population(np.random.default_rng(1), CONFIG.population)
+    monkeypatch.delenv("EHW_PORT", raising=False)
+    with pytest.raises(LinkError, match="needs a port"):
+        make_serial_learning_boards(CONFIG, 1, population)
+    with pytest.raises(LinkError, match="loop://"):  # pyserial's echo line: no board answers
+        make_serial_learning_boards(CONFIG, 1, population, port="loop://", baud=115_200)
