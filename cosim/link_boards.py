@@ -28,7 +28,7 @@ import numpy as np
 from cosim.boards import EvalCounts, ReferenceControllerBoard, ReferenceEvaluatorBoard, register_backend
 from cosim.link_host import RETRIES, LinkClient, LinkError, NotLoaded
 from ga.motions import DEFAULT_DISTANCE_RULE
-from hdl.link import Design
+from hdl.link_protocol import Design
 from hdl.uart import DEFAULT_BAUD
 
 PORT_ENV, PORT2_ENV, BAUD_ENV = "EHW_PORT", "EHW_PORT2", "EHW_BAUD"

@@ -1,4 +1,4 @@
-"""The host's side of the link protocol of ``hdl.link``: frames, retries, the board commands.
+"""The host's side of the link protocol of ``hdl.link_protocol``: frames, retries, the board commands.
 
 :class:`LinkClient` talks to one board through a *byte stream*: any object with pyserial's
 ``write(data)``, ``read(n)`` (returns fewer than ``n`` bytes when its ``timeout`` passes),
@@ -6,7 +6,7 @@
 (``cosim.link_boards``); the simulated board top is a line in a cocotb simulation
 (``cosim.uart_backend``). The client is the same code for both.
 
-Every frame layout, command, status and the CRC come from ``hdl.link``; nothing is re-typed.
+Every frame layout, command, status and the CRC come from ``hdl.link_protocol``; nothing is re-typed.
 
 Retries: a request whose reply does not come within the stream's timeout, comes with a bad CRC,
 or says BAD_CRC / TRUNCATED (the board saw the request damaged) is sent again, at most
@@ -23,11 +23,12 @@ from amaranth.lib import data
 
 from cosim.errors import UserError
 
-from hdl.link import (COUNTERS_REPLY, CRC_BYTES, EVALUATE_REPLY, EVALUATE_REQUEST, HEADER_BYTES,
-                      IDENTIFY_REPLY, LINK_CRC, LOAD_GENOME_REQUEST, MOTION_REPLY, MOTION_REQUEST,
-                      NAME_BYTES, OBSERVE_REQUEST, READ_RESULTS_REQUEST, REFLEX_REQUEST,
-                      RESULT_BYTES, RESULT_REPLY, RESULTS_PER_READ, SYNC, Command, Design,
-                      FrameHeader, Status, genome_bytes)
+from hdl.link_protocol import (COUNTERS_REPLY, CRC_BYTES, EVALUATE_REPLY, EVALUATE_REQUEST,
+                               HEADER_BYTES, IDENTIFY_REPLY, LINK_CRC, LOAD_GENOME_REQUEST,
+                               MOTION_REPLY, MOTION_REQUEST, NAME_BYTES, OBSERVE_REQUEST,
+                               READ_RESULTS_REQUEST, REFLEX_REQUEST, RESULT_BYTES, RESULT_REPLY,
+                               RESULTS_PER_READ, SYNC, Command, Design, FrameHeader, Status,
+                               genome_bytes)
 
 RETRIES = 3  # resends of one request after an error reply or a timeout
 PIPELINE = 2  # LOAD_GENOME frames in flight (the board answers one while the next arrives)
@@ -202,7 +203,7 @@ class LinkClient:
 
     def expect(self, *designs: Design) -> Identity:
         """IDENTIFY, and a clear error unless the board is one of ``designs`` with this genome layout."""
-        from hdl.link import GENOME_LAYOUT_VERSION
+        from hdl.link_protocol import GENOME_LAYOUT_VERSION
 
         try:
             identity = self.identify()

@@ -18,16 +18,10 @@ import numpy as np
 from cosim.boards import LearnResult, ReferenceLearningBoard
 from cosim.link_boards import LinkMismatch
 from cosim.link_host import LinkClient, LinkError, pack, unpack
-from hdl.link import (LEARN_REPLY, LEARN_REQUEST, READ_GENOME_REQUEST, SEED_REQUEST, Command, Design,
-                      genome_bytes)
+from hdl.link_protocol import (LEARN_REPLY, LEARN_REQUEST, READ_GENOME_REQUEST, SEED_REQUEST, Command,
+                               Design, genome_bytes, layout_bytes)
 
 MAX_GENERATIONS = (1 << LEARN_REQUEST["generations"].width) - 1  # 4095
-
-
-def _bytes(layout) -> int:
-    from amaranth.lib import data
-
-    return (data.Layout.cast(layout).size + 7) // 8
 
 
 class LinkLearningBoard:
@@ -91,7 +85,7 @@ class LinkLearningBoard:
         state, motion = avoid if avoid is not None else (0, 0)
         payload = pack(LEARN_REQUEST, generations=int(generations), avoid_en=int(avoid is not None),
                        avoid_state=int(state), avoid_motion=int(motion), serial=self._serial)
-        reply = unpack(LEARN_REPLY, self.client.request(Command.LEARN, payload, reply_length=_bytes(LEARN_REPLY)))
+        reply = unpack(LEARN_REPLY, self.client.request(Command.LEARN, payload, reply_length=layout_bytes(LEARN_REPLY)))
         rows = self.read_genome(int(reply.index))
         # the learn's clock edges, as on every backend: the busy cycles and the edge leaving Idle
         result = LearnResult(rows, int(reply.crashes), int(reply.loops), int(reply.distance),

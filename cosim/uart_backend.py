@@ -1,5 +1,5 @@
 """The ``uart`` board backend: the board top that goes into the bitstream, UART included
-(``hdl.link.SystemLinkTop``), in Verilator through cocotb, reached by the host code of the
+(``hdl.link_tops.SystemLinkTop``), in Verilator through cocotb, reached by the host code of the
 ``serial`` backend (``cosim.link_host``, ``cosim.link_boards``) over a simulated serial line.
 
     make sim BACKEND=uart [BAUD=...] ARGS="--targets 4 --population 20"
@@ -311,7 +311,7 @@ def write_link_verilog(out_dir: Path, *, baud: float, p_max: int | None = None,
     from amaranth.back import verilog
 
     from cosim.cocotb_run import icarus_time_zero_fix
-    from hdl.link import SystemLinkTop
+    from hdl.link_tops import SystemLinkTop
 
     out_dir.mkdir(parents=True, exist_ok=True)
     path = out_dir / f"{TOPLEVEL}.v"

@@ -1,8 +1,8 @@
-// Properties of the host link's frame decoder, hdl.link.FrameReceiver (formal/proofs.py, proof
+// Properties of the host link's frame decoder, hdl.link_protocol.FrameReceiver (formal/proofs.py, proof
 // link_decoder), by temporal induction. The harness feeds it any byte stream (valid and payload
 // free in every cycle); the base case is a reset in the first cycle.
 //
-// The model below is the frame format of hdl/link.py's docstring, written independently:
+// The model below is the frame format of hdl/link_protocol.py's docstring, written independently:
 // SYNC (0xA5) | command | status | tag | length | payload[length] | crc[15:8] | crc[7:0] (H = 4
 // header bytes, the last one the payload length), the CRC being
 // CRC-16/IBM-3740 ("CCITT-FALSE": poly 0x1021, init 0xFFFF, not reflected, no final XOR) over the
@@ -14,7 +14,7 @@
 
 module link_props #(
     parameter T = 4,    // FrameReceiver(timeout_cycles=T)
-    parameter H = 4     // header bytes (hdl.link.HEADER_BYTES); the last one is the length
+    parameter H = 4     // header bytes (hdl.link_protocol.HEADER_BYTES); the last one is the length
 ) (
     input wire       clk,
     input wire       rst,

@@ -69,7 +69,7 @@ EVALUATOR_PROBES = {
     "probe_wr_addr": "wr__addr",
     "probe_wr_data": "wr__data",
 }
-# hdl.link.FrameReceiver, module frame_receiver (the host link's frame decoder).
+# hdl.link_protocol.FrameReceiver, module frame_receiver (the host link's frame decoder).
 LINK_PORTS = {
     "clk": "clk",
     "rst": "rst",

@@ -230,7 +230,7 @@ LINK_TIMEOUT_CYCLES = 4  # FrameReceiver(timeout_cycles): small, so the stall is
 
 def _link_build(timeout: int):
     def build(workdir: Path) -> str:
-        from hdl.link import HEADER_BYTES, FrameReceiver
+        from hdl.link_protocol import HEADER_BYTES, FrameReceiver
 
         (workdir / "frame_receiver.v").write_text(
             verilog.convert(FrameReceiver(timeout), name="frame_receiver", emit_src=False))
@@ -259,7 +259,7 @@ LINK_ASSUMPTIONS = (
     f"FrameReceiver(timeout_cycles={LINK_TIMEOUT_CYCLES}): the timeout is a parameter; the proof "
     "is for this value (the boards use thousands of cycles; the logic is the same counter)",
     "the decoder alone: that the board tops dispatch only on done & ok, and answer every "
-    "truncated or failed frame, is read in hdl/link.py, not proven",
+    "truncated or failed frame, is read in hdl/link_tops.py, not proven",
     "the harness reads the decoder's FSM state, byte position, silence counter and CRC register "
     "by name (formal/ports.py)",
 )
@@ -351,9 +351,9 @@ PROOFS: list[Proof] = [
     ),
     Proof(
         name="link_decoder",
-        claim="hdl.link.FrameReceiver: a frame is executed (done & ok) only when complete with a "
-              "matching CRC; every other frame ends done & !ok or truncated; back to Sync after "
-              "at most T + 1 quiet cycles, whatever the bytes",
+        claim="hdl.link_protocol.FrameReceiver: a frame is executed (done & ok) only when complete "
+              "with a matching CRC; every other frame ends done & !ok or truncated; back to Sync "
+              "after at most T + 1 quiet cycles, whatever the bytes",
         assumptions=LINK_ASSUMPTIONS,
         engine="yosys sat -tempinduct",
         depth="induction",

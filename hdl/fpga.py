@@ -69,17 +69,17 @@ class FpgaError(Exception):
 
 
 def _controller_top(clk_freq_hz: float):
-    from hdl.link import ControllerLinkTop
+    from hdl.link_tops import ControllerLinkTop
     return ControllerLinkTop(clk_freq_hz=clk_freq_hz)
 
 
 def _evaluator_top(clk_freq_hz: float):
-    from hdl.link import EvaluatorLinkTop
+    from hdl.link_tops import EvaluatorLinkTop
     return EvaluatorLinkTop(clk_freq_hz=clk_freq_hz, double_buffer=False)
 
 
 def _system_top(clk_freq_hz: float):
-    from hdl.link import SystemLinkTop
+    from hdl.link_tops import SystemLinkTop
     return SystemLinkTop(clk_freq_hz=clk_freq_hz)
 
 

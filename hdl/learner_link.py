@@ -1,11 +1,11 @@
 """The learning board behind the host link: ``LearnerLinkTop`` (SPEC section 12, issue 14).
 
 The controller board (``ControllerEHW``) and the learning engine (``hdl.learner.Learner``) behind
-one UART host link (the protocol of ``hdl.link``): the ``ulx3s-learner`` bitstream of
+one UART host link (the protocol of ``hdl.link_protocol``): the ``ulx3s-learner`` bitstream of
 ``hdl.fpga``. Only observations (4 bytes), "learn G generations" (4 bytes) and the download
 (119 bytes) travel during a run; the population goes down once (500 LOAD_GENOME frames).
 
-Commands (``hdl.link.DESIGN_COMMANDS[Design.LEARNER]``):
+Commands (``hdl.link_protocol.DESIGN_COMMANDS[Design.LEARNER]``):
 
 - IDENTIFY (``p_max`` = the population), READ_COUNTERS (``evaluator_cycles``: the engine's cycles
   of every learn since reset);
@@ -29,9 +29,9 @@ from amaranth.hdl import Cat, Mux, Signal
 from ga.genome import GENOME_BITS, N_ROWS, ROW_BITS
 from hdl.controller_ehw import ControllerEHW
 from hdl.learner import Learner
-from hdl.link import (LEARN_REPLY, LEARN_REQUEST, LOAD_GENOME_REQUEST, READ_GENOME_REQUEST,
-                      SEED_REQUEST, Command, Design, Status, _controller_states, _layout_bytes,
-                      _LinkTop, _Ports, _state, genome_bytes)
+from hdl.link_protocol import (LEARN_REPLY, LEARN_REQUEST, LOAD_GENOME_REQUEST, READ_GENOME_REQUEST,
+                               SEED_REQUEST, Command, Design, Status, genome_bytes, layout_bytes)
+from hdl.link_tops import _controller_states, _LinkTop, _Ports, _state
 from hdl.uart import DEFAULT_BAUD
 
 
@@ -113,7 +113,7 @@ class LearnerLinkTop(_LinkTop):
     def _learn_states(self, m, link, eng):
         req = link.args_as(LEARN_REQUEST)
         last_serial = Signal(8)
-        result = Signal(8 * _layout_bytes(LEARN_REPLY))  # the last executed learn's reply
+        result = Signal(8 * layout_bytes(LEARN_REPLY))  # the last executed learn's reply
         reply = LEARN_REPLY(result)
         avoid_en, avoid_state, avoid_motion = Signal(), Signal.like(eng.avoid_state), Signal.like(eng.avoid_motion)
         generations = Signal.like(req.generations)
@@ -122,7 +122,7 @@ class LearnerLinkTop(_LinkTop):
         with m.State(_state(Command.LEARN)):
             with m.If(req.serial == last_serial):
                 m.d.sync += link.reply[:len(result)].eq(result)
-                link.answer(m, Status.OK, _layout_bytes(LEARN_REPLY))
+                link.answer(m, Status.OK, layout_bytes(LEARN_REPLY))
             with m.Elif(req.generations == 0):
                 link.answer(m, Status.BAD_ARGUMENT)
             with m.Elif(eng.ready):
@@ -148,5 +148,5 @@ class LearnerLinkTop(_LinkTop):
                 m.next = "LearnReply"
         with m.State("LearnReply"):
             m.d.sync += link.reply[:len(result)].eq(result)
-            link.answer(m, Status.OK, _layout_bytes(LEARN_REPLY))
+            link.answer(m, Status.OK, layout_bytes(LEARN_REPLY))
 

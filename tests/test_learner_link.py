@@ -19,7 +19,7 @@ from ga import hardware_ga as hg
 from ga.motions import OBSTACLE_MASK
 from ga.operators import random_population
 from hdl.learner_link import LearnerLinkTop
-from hdl.link import LEARN_REPLY, LEARN_REQUEST, Command
+from hdl.link_protocol import LEARN_REPLY, LEARN_REQUEST, Command
 from link_sim import AmaranthSerial
 
 CLK, BAUD = 1e6, 250_000  # divisor 4: the fastest the UART runs

@@ -1,5 +1,6 @@
 # amaranth: UnusedElaboratable=no
-"""The host link (hdl/link.py, cosim/link_host.py, cosim/link_boards.py, cosim/uart_backend.py).
+"""The host link (hdl/link_protocol.py, hdl/link_tops.py, cosim/link_host.py, cosim/link_boards.py,
+cosim/uart_backend.py).
 
 - Frames: the host's encoder against the gateware's definitions (CRC residue, header layout).
 - Amaranth's simulator, bit by bit through the UART line model (tests/link_sim.py): the
@@ -21,8 +22,9 @@ import numpy as np
 import pytest
 
 from cosim.link_host import (LinkClient, LinkError, encode_frame, genome_payload, pack, unpack)
-from hdl.link import (CRC_BYTES, HEADER_BYTES, LINK_CRC, REQUEST_LENGTH, SYNC, Command,
-                      ControllerLinkTop, EvaluatorLinkTop, FrameHeader, Status, genome_bytes)
+from hdl.link_protocol import (CRC_BYTES, HEADER_BYTES, LINK_CRC, REQUEST_LENGTH, SYNC, Command,
+                               FrameHeader, Status, genome_bytes)
+from hdl.link_tops import ControllerLinkTop, EvaluatorLinkTop
 from link_sim import AmaranthSerial, FaultyStream
 
 TB_DIR = Path(__file__).resolve().parent / "cocotb_tb"
@@ -128,7 +130,7 @@ def test_single_buffered_evaluator_top_matches_the_reference():
 
 
 def pack_index(index: int) -> bytes:
-    from hdl.link import LOAD_GENOME_REQUEST
+    from hdl.link_protocol import LOAD_GENOME_REQUEST
 
     return pack(LOAD_GENOME_REQUEST, index=index)
 

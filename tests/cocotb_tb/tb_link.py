@@ -33,7 +33,7 @@ from cosim.link_boards import LinkControllerBoard, LinkEvaluatorBoard  # noqa: E
 from cosim.link_host import RETRIES, LinkClient, LinkError, pack  # noqa: E402
 from cosim.uart_backend import CONFIG_ENV, SIM_CLK_HZ, host_timeout_s, start_top  # noqa: E402
 from ga.motions import DEFAULT_DISTANCE_RULE  # noqa: E402
-from hdl.link import LINK_CRC, SYNC, FrameHeader  # noqa: E402
+from hdl.link_protocol import LINK_CRC, SYNC, FrameHeader  # noqa: E402
 from link_sim import FaultyStream  # noqa: E402
 
 BAUD = float(os.environ.get("EHW_BAUD", SIM_CLK_HZ / 4))
