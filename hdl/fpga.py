@@ -1,13 +1,16 @@
 """FPGA bitstreams of the EHW boards: ``make bitstream`` -> build/fpga/<target>/, results/fpga.json.
 
-Three targets (SPEC section 8), each a board top with its UART host link on an amaranth-boards
+Four targets (SPEC sections 8 and 12), each a board top with its UART host link on an amaranth-boards
 platform, placed and routed with the pip-installed YoWASP tools (the ``fpga`` extra of
 pyproject.toml, which ``make bitstream`` installs and ``make test`` never needs):
 
 - ``icebreaker-controller``: the robot's controller board on an iCEBreaker (iCE40UP5K);
 - ``icebreaker-evaluator``: the single-buffered evaluator board on a second iCEBreaker (the
   double-buffered one needs 124 % of the UP5K): the paper's two boards side by side;
-- ``ulx3s-system``: both boards and the population streamer (SystemTop) on a ULX3S (LFE5U-85F).
+- ``ulx3s-system``: both boards and the population streamer (SystemTop) on a ULX3S (LFE5U-85F);
+- ``ulx3s-learner``: the controller board and the learning engine (``hdl.learner_link``,
+  ``LEARNER_LANES`` lanes) on a ULX3S; its entry also records ``lanes``, ``population``,
+  ``tournament`` (the engine's cycle count at ``fmax_mhz`` is ``make bench``'s on-chip figure).
 
 Each target is built for its board's oscillator (12 MHz iCEBreaker, 25 MHz ULX3S, no PLL), below
 the Fmax measured for each design (SPEC section 8), and nextpnr is told the clock, so its report
