@@ -103,8 +103,9 @@ def fpga_build() -> tuple[dict | None, str]:
     if RECORDED.exists():
         target = json.loads(RECORDED.read_text()).get("ulx3s-learner")
         if target and target.get("fmax_mhz") and target.get("lanes"):
+            kind = f", {target['fmax_kind']}" if target.get("fmax_kind") else ""
             return _within_budget(target), (f"benchmarks/data/fpga_learner.json (recorded make bitstream "
-                                            f"ulx3s-learner of commit {target.get('commit')}, built {target.get('built')})")
+                                            f"ulx3s-learner of commit {target.get('commit')}{kind})")
     return None, "no learner build measured (make bitstream FPGA_TARGETS=ulx3s-learner)"
 
 
