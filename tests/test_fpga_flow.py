@@ -175,3 +175,19 @@ def test_clock_from_a_broken_results_file_falls_back(tmp_path, monkeypatch):
     path = tmp_path / "fpga.json"
     path.write_text("{not json")
     assert measured_clock("ulx3s-system", results=path)[0] == CLOCK_HZ
+
+
+def test_learning_bench_takes_the_fmax_from_the_build_and_says_which(tmp_path, monkeypatch):
+    """make bench's on-chip figures: results/fpga.json's ulx3s-learner first, else the recorded
+    summary benchmarks/data/fpga_learner.json (a fresh clone), named in onchip_fmax_source."""
+    from benchmarks import bench_learning as bench
+
+    monkeypatch.chdir(tmp_path)
+    recorded = json.loads(bench.RECORDED.read_text())["ulx3s-learner"]
+    build, source = bench.fpga_build()
+    assert source.startswith("benchmarks/data/fpga_learner.json") and recorded["commit"] in source
+    assert build["lanes"] == recorded["lanes"] and build["lut_fraction"] == round(recorded["luts"] / recorded["luts_available"], 4)
+    fpga.write_results(tmp_path / "results" / "fpga.json", "ulx3s-learner",
+                       {"lanes": 8, "fmax_mhz": 30.0, "luts": 60_000, "luts_available": 83_640, "built": "now"})
+    build, source = bench.fpga_build()
+    assert source.startswith("results/fpga.json") and (build["lanes"], build["fmax_mhz"]) == (8, 30.0)
