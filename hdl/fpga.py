@@ -116,6 +116,7 @@ class Target:
     bitstream: str  # file the flow writes (iCE40: .bin for iceprog; ECP5: .bit for openFPGALoader)
     nextpnr_opts: str = ""  # beyond the flow's own (the report, the seed, --timing-allow-fail)
     params: Callable[[], dict] | None = None  # design parameters recorded with the build
+    in_default: bool = True  # built by a plain make bitstream (else only when named)
 
     def make_platform(self):
         module, cls = self.platform.split(":")
@@ -132,10 +133,13 @@ TARGETS = {t.name: t for t in (
     Target("ulx3s-learner", "ULX3S", "amaranth_boards.ulx3s:ULX3S_85F_Platform",
            "ecp5", f"LearnerLinkTop(lanes={LEARNER_LANES})", _learner_top, f"{BUILD_NAME}.bit",
            # router2: routes the ~40k cells in a fraction of router1's time (same timing report)
-           nextpnr_opts="--router router2",
+           nextpnr_opts="--router router2", in_default=False,  # an hour or more: only when named
            params=lambda: {k: v for k, v in learner_config().to_dict().items()
                            if k in ("lanes", "population", "tournament")}),
 )}
+
+
+DEFAULT_TARGETS = [name for name, t in TARGETS.items() if t.in_default]
 
 
 def part_name(platform) -> str:
@@ -384,7 +388,8 @@ def _unfit_entry(target: Target, platform, out: Path, clock_mhz: float, build_s:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m hdl.fpga", description=__doc__.splitlines()[0])
     parser.add_argument("targets", nargs="*", metavar="TARGET",
-                        help=f"targets to build (default all: {', '.join(TARGETS)})")
+                        help=f"targets to build (default: {', '.join(DEFAULT_TARGETS)}; "
+                             f"ulx3s-learner only when named)")
     parser.add_argument("--out", type=Path, default=BUILD_ROOT, help="build folder (default %(default)s)")
     parser.add_argument("--results", type=Path, default=RESULTS, help="results file (default %(default)s)")
     parser.add_argument("--seed", type=int, default=1, help="nextpnr's placement seed (default %(default)s)")
@@ -405,7 +410,7 @@ def main(argv=None) -> int:
     except FpgaError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    for name in args.targets or list(TARGETS):
+    for name in args.targets or DEFAULT_TARGETS:
         print(f"== {name}: building (Yosys, nextpnr: minutes)", flush=True)
         try:
             entry = build(TARGETS[name], args.out, env=env, seed=args.seed)

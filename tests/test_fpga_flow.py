@@ -105,6 +105,7 @@ def test_targets_and_the_board_clocks():
     learner = fpga.TARGETS["ulx3s-learner"]
     assert learner.params() == {"population": 500, "tournament": 20, "lanes": fpga.LEARNER_LANES}
     assert "--router router2" in learner.nextpnr_opts
+    assert fpga.DEFAULT_TARGETS == ["icebreaker-controller", "icebreaker-evaluator", "ulx3s-system"]
     assert {t.family for t in fpga.TARGETS.values()} == {"ice40", "ecp5"}
 
 
