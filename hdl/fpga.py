@@ -1,13 +1,16 @@
 """FPGA bitstreams of the EHW boards: ``make bitstream`` -> build/fpga/<target>/, results/fpga.json.
 
-Three targets (SPEC section 8), each a board top with its UART host link on an amaranth-boards
+Four targets (SPEC sections 8 and 12), each a board top with its UART host link on an amaranth-boards
 platform, placed and routed with the pip-installed YoWASP tools (the ``fpga`` extra of
 pyproject.toml, which ``make bitstream`` installs and ``make test`` never needs):
 
 - ``icebreaker-controller``: the robot's controller board on an iCEBreaker (iCE40UP5K);
 - ``icebreaker-evaluator``: the single-buffered evaluator board on a second iCEBreaker (the
   double-buffered one needs 124 % of the UP5K): the paper's two boards side by side;
-- ``ulx3s-system``: both boards and the population streamer (SystemTop) on a ULX3S (LFE5U-85F).
+- ``ulx3s-system``: both boards and the population streamer (SystemTop) on a ULX3S (LFE5U-85F);
+- ``ulx3s-learner``: the controller board and the learning engine (``hdl.learner_link``,
+  ``LEARNER_LANES`` lanes) on a ULX3S; its entry also records ``lanes``, ``population``,
+  ``tournament`` (the engine's cycle count at ``fmax_mhz`` is ``make bench``'s on-chip figure).
 
 Each target is built for its board's oscillator (12 MHz iCEBreaker, 25 MHz ULX3S, no PLL), below
 the Fmax measured for each design (SPEC section 8), and nextpnr is told the clock, so its report
@@ -83,6 +86,23 @@ def _system_top(clk_freq_hz: float):
     return SystemLinkTop(clk_freq_hz=clk_freq_hz)
 
 
+# The learning engine's lanes in the ulx3s-learner bitstream (docs/learner.md, "Resources and
+# clock": the lanes that fit 80 % of the LFE5U-85F's LUTs, and the build time they cost).
+LEARNER_LANES = 4
+
+
+def learner_config(lanes: int = LEARNER_LANES):
+    """The engine of the ulx3s-learner bitstream: the on-line run's GA (population 500,
+    tournament 20, the default rates) with ``lanes`` lanes."""
+    from ga.hardware_ga import HardwareGAConfig
+    return HardwareGAConfig(population=500, tournament=20, lanes=lanes)
+
+
+def _learner_top(clk_freq_hz: float):
+    from hdl.learner_link import LearnerLinkTop
+    return LearnerLinkTop(clk_freq_hz=clk_freq_hz, config=learner_config())
+
+
 @dataclass(frozen=True)
 class Target:
     """One bitstream: a board top (``rx``/``tx`` UART pins) on an amaranth-boards platform."""
@@ -94,6 +114,9 @@ class Target:
     design: str  # the board top, for the report
     top: Callable[[float], object]  # clk_freq_hz -> the top (a wiring.Component with rx, tx)
     bitstream: str  # file the flow writes (iCE40: .bin for iceprog; ECP5: .bit for openFPGALoader)
+    nextpnr_opts: str = ""  # beyond the flow's own (the report, the seed, --timing-allow-fail)
+    params: Callable[[], dict] | None = None  # design parameters recorded with the build
+    in_default: bool = True  # built by a plain make bitstream (else only when named)
 
     def make_platform(self):
         module, cls = self.platform.split(":")
@@ -107,7 +130,16 @@ TARGETS = {t.name: t for t in (
            "ice40", "EvaluatorLinkTop(double_buffer=False)", _evaluator_top, f"{BUILD_NAME}.bin"),
     Target("ulx3s-system", "ULX3S", "amaranth_boards.ulx3s:ULX3S_85F_Platform",
            "ecp5", "SystemLinkTop", _system_top, f"{BUILD_NAME}.bit"),
+    Target("ulx3s-learner", "ULX3S", "amaranth_boards.ulx3s:ULX3S_85F_Platform",
+           "ecp5", f"LearnerLinkTop(lanes={LEARNER_LANES})", _learner_top, f"{BUILD_NAME}.bit",
+           # router2: routes the ~40k cells in a fraction of router1's time (same timing report)
+           nextpnr_opts="--router router2", in_default=False,  # an hour or more: only when named
+           params=lambda: {k: v for k, v in learner_config().to_dict().items()
+                           if k in ("lanes", "population", "tournament")}),
 )}
+
+
+DEFAULT_TARGETS = [name for name, t in TARGETS.items() if t.in_default]
 
 
 def part_name(platform) -> str:
@@ -278,8 +310,9 @@ def build(target: Target, build_root: Path | str = BUILD_ROOT, env: dict | None 
     plan = platform.build(
         OnBoard(target.top(clock_hz)), name=BUILD_NAME, build_dir=str(out), do_build=False,
         script_after_synth=f"tee -q -o {stat} stat -json",
-        nextpnr_opts=f"--timing-allow-fail --report {report} --seed {seed}",
+        nextpnr_opts=f"--timing-allow-fail --report {report} --seed {seed} {target.nextpnr_opts}".strip(),
     )
+    commit = source_commit()  # the design was elaborated from this checkout just now
     t0 = time.perf_counter()
     try:
         plan.execute_local(str(out), env=env)
@@ -301,6 +334,7 @@ def build(target: Target, build_root: Path | str = BUILD_ROOT, env: dict | None 
     return {
         "board": target.board,
         "design": target.design,
+        **(target.params() if target.params else {}),
         "part": part_name(platform),
         "fits": True,
         **placed,
@@ -311,9 +345,23 @@ def build(target: Target, build_root: Path | str = BUILD_ROOT, env: dict | None 
                     "nextpnr_report": str(out / report), "yosys_stat": str(out / stat)},
         "build_s": round(build_s, 1),
         "seed": seed,
+        "commit": commit,
         "tools": tool_versions(target.family, env),
         "built": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
     }
+
+
+def source_commit() -> str:
+    """The checkout's git commit, ``+dirty`` when hdl/, ga/ or the sources differ from it
+    (what a build was made from); ``unknown`` outside a git checkout."""
+    try:
+        head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
+                              timeout=10, cwd=REPO_ROOT).stdout.strip()
+        dirty = subprocess.run(["git", "status", "--porcelain", "--", "hdl", "ga"], capture_output=True,
+                               text=True, timeout=10, cwd=REPO_ROOT).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+    return (head + ("+dirty" if dirty else "")) if head else "unknown"
 
 
 def _unfit_entry(target: Target, platform, out: Path, clock_mhz: float, build_s: float, env: dict):
@@ -327,7 +375,8 @@ def _unfit_entry(target: Target, platform, out: Path, clock_mhz: float, build_s:
     if used["luts"] <= used["luts_available"]:
         return None
     return {
-        "board": target.board, "design": target.design, "part": part_name(platform), "fits": False,
+        "board": target.board, "design": target.design, **(target.params() if target.params else {}),
+        "part": part_name(platform), "fits": False,
         **used, "ffs": ffs, "fmax_mhz": None, "timing_met": False, "clock_mhz": clock_mhz,
         "bitstream": None,
         "reports": {"yosys_log": str(out / f"{BUILD_NAME}.rpt"), "nextpnr_log": str(out / f"{BUILD_NAME}.tim")},
@@ -339,7 +388,8 @@ def _unfit_entry(target: Target, platform, out: Path, clock_mhz: float, build_s:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(prog="python -m hdl.fpga", description=__doc__.splitlines()[0])
     parser.add_argument("targets", nargs="*", metavar="TARGET",
-                        help=f"targets to build (default all: {', '.join(TARGETS)})")
+                        help=f"targets to build (default: {', '.join(DEFAULT_TARGETS)}; "
+                             f"ulx3s-learner only when named)")
     parser.add_argument("--out", type=Path, default=BUILD_ROOT, help="build folder (default %(default)s)")
     parser.add_argument("--results", type=Path, default=RESULTS, help="results file (default %(default)s)")
     parser.add_argument("--seed", type=int, default=1, help="nextpnr's placement seed (default %(default)s)")
@@ -360,7 +410,7 @@ def main(argv=None) -> int:
     except FpgaError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    for name in args.targets or list(TARGETS):
+    for name in args.targets or DEFAULT_TARGETS:
         print(f"== {name}: building (Yosys, nextpnr: minutes)", flush=True)
         try:
             entry = build(TARGETS[name], args.out, env=env, seed=args.seed)

@@ -71,6 +71,9 @@ class Command(enum.Enum, shape=8):
     LOAD_GENOME = 0x22      # LOAD_GENOME_REQUEST + genome bytes: population slot `index`
     EVALUATE = 0x23         # EVALUATE_REQUEST -> EVALUATE_REPLY: slots 0..count-1
     READ_RESULTS = 0x24     # READ_RESULTS_REQUEST -> count x RESULT_REPLY
+    SEED = 0x30             # SEED_REQUEST: the learning engine's generators (hdl.learner)
+    LEARN = 0x31            # LEARN_REQUEST -> LEARN_REPLY: G generations on the chip
+    READ_GENOME = 0x32      # READ_GENOME_REQUEST -> genome bytes of population slot `index`
 
 
 class Status(enum.Enum, shape=8):
@@ -111,6 +114,22 @@ LOAD_GENOME_REQUEST = data.StructLayout({"index": 16})  # then the genome bytes
 EVALUATE_REQUEST = data.StructLayout({"count": 16})
 EVALUATE_REPLY = data.StructLayout({"cycles": 32})
 READ_RESULTS_REQUEST = data.StructLayout({"first": 16, "count": 8})
+SEED_REQUEST = data.StructLayout({"seed": 32})
+LEARN_REQUEST = data.StructLayout({
+    "generations": 12,      # 1..4095
+    "avoid_en": 1,          # download the escape child of (avoid_state, avoid_motion) if any
+    "avoid_motion": N_OUTPUTS,
+    "avoid_state": N_INPUTS,
+    "serial": 8,            # a LEARN whose serial is the last executed one's only re-sends its reply
+})
+LEARN_REPLY = data.StructLayout({
+    "cycles": 32,           # the engine's busy cycles (its register): ga.hardware_ga.learn_cycles - 1
+    "index": 16,            # the download's population slot (READ_GENOME)
+    "score": 24,            # its integer score (ga.hardware_ga.score)
+    "crashes": 16, "loops": 16, "distance": 16,
+    "escaped": 8,           # 1: the download is the escape child, not the best of the last pass
+})
+READ_GENOME_REQUEST = data.StructLayout({"index": 16})
 # one controller's result: the evaluator's result word (hdl.ports.RESULT_LAYOUT) padded to bytes
 RESULT_REPLY = data.StructLayout({"result": RESULT_LAYOUT,
                                   "_pad": -data.Layout.cast(RESULT_LAYOUT).size % 8})
@@ -149,8 +168,12 @@ REQUEST_LENGTH = {
     Command.LOAD_GENOME: layout_bytes(LOAD_GENOME_REQUEST) + genome_bytes(),
     Command.EVALUATE: layout_bytes(EVALUATE_REQUEST),
     Command.READ_RESULTS: layout_bytes(READ_RESULTS_REQUEST),
+    Command.SEED: layout_bytes(SEED_REQUEST),
+    Command.LEARN: layout_bytes(LEARN_REQUEST),
+    Command.READ_GENOME: layout_bytes(READ_GENOME_REQUEST),
 }
-assert max(layout_bytes(layout) for layout in (OBSERVE_REQUEST, READ_RESULTS_REQUEST)) <= ARG_BYTES
+assert max(layout_bytes(layout) for layout in (OBSERVE_REQUEST, READ_RESULTS_REQUEST, SEED_REQUEST,
+                                               LEARN_REQUEST, READ_GENOME_REQUEST)) <= ARG_BYTES
 
 
 class Design(py_enum.Enum):
@@ -159,6 +182,7 @@ class Design(py_enum.Enum):
     CONTROLLER = "ehw-controller"
     EVALUATOR = "ehw-evaluator"
     SYSTEM = "ehw-system"
+    LEARNER = "ehw-learner"
 
 
 _CONTROLLER_COMMANDS = (Command.LOAD_CONTROLLER, Command.SET_REFLEX, Command.MOTION)
@@ -169,6 +193,9 @@ DESIGN_COMMANDS = {
     Design.EVALUATOR: (Command.IDENTIFY, Command.READ_COUNTERS) + _EVALUATOR_COMMANDS,
     Design.SYSTEM: (Command.IDENTIFY, Command.READ_COUNTERS) + _CONTROLLER_COMMANDS
                    + tuple(c for c in _EVALUATOR_COMMANDS if c not in _CONTROLLER_COMMANDS),
+    Design.LEARNER: (Command.IDENTIFY, Command.READ_COUNTERS) + _CONTROLLER_COMMANDS
+                    + (Command.OBSERVE, Command.CLEAR, Command.LOAD_GENOME, Command.SEED,
+                       Command.LEARN, Command.READ_GENOME),
 }
 
 

@@ -101,7 +101,11 @@ def test_write_results_merges_targets(tmp_path):
 
 
 def test_targets_and_the_board_clocks():
-    assert list(fpga.TARGETS) == ["icebreaker-controller", "icebreaker-evaluator", "ulx3s-system"]
+    assert list(fpga.TARGETS) == ["icebreaker-controller", "icebreaker-evaluator", "ulx3s-system", "ulx3s-learner"]
+    learner = fpga.TARGETS["ulx3s-learner"]
+    assert learner.params() == {"population": 500, "tournament": 20, "lanes": fpga.LEARNER_LANES}
+    assert "--router router2" in learner.nextpnr_opts
+    assert fpga.DEFAULT_TARGETS == ["icebreaker-controller", "icebreaker-evaluator", "ulx3s-system"]
     assert {t.family for t in fpga.TARGETS.values()} == {"ice40", "ecp5"}
 
 
@@ -172,3 +176,19 @@ def test_clock_from_a_broken_results_file_falls_back(tmp_path, monkeypatch):
     path = tmp_path / "fpga.json"
     path.write_text("{not json")
     assert measured_clock("ulx3s-system", results=path)[0] == CLOCK_HZ
+
+
+def test_learning_bench_takes_the_fmax_from_the_build_and_says_which(tmp_path, monkeypatch):
+    """make bench's on-chip figures: results/fpga.json's ulx3s-learner first, else the recorded
+    summary benchmarks/data/fpga_learner.json (a fresh clone), named in onchip_fmax_source."""
+    from benchmarks import bench_learning as bench
+
+    monkeypatch.chdir(tmp_path)
+    recorded = json.loads(bench.RECORDED.read_text())["ulx3s-learner"]
+    build, source = bench.fpga_build()
+    assert source.startswith("benchmarks/data/fpga_learner.json") and recorded["commit"] in source
+    assert build["lanes"] == recorded["lanes"] and build["lut_fraction"] == round(recorded["luts"] / recorded["luts_available"], 4)
+    fpga.write_results(tmp_path / "results" / "fpga.json", "ulx3s-learner",
+                       {"lanes": 8, "fmax_mhz": 30.0, "luts": 60_000, "luts_available": 83_640, "built": "now"})
+    build, source = bench.fpga_build()
+    assert source.startswith("results/fpga.json") and (build["lanes"], build["fmax_mhz"]) == (8, 30.0)

@@ -1,0 +1,126 @@
+"""The learning board (``cosim.boards.LearningBoard``) over the host link: a ``LearnerLinkTop``
+(``hdl.learner_link``, the ``ulx3s-learner`` bitstream) through a ``cosim.link_host.LinkClient``.
+
+What crosses the link: the population once (LOAD_GENOME, pipelined), the seed (SEED), every
+observation (OBSERVE, 4 bytes: the host keeps its copy of the world model for the update rule,
+as ``cosim.link_boards.LinkEvaluatorBoard``), and per learning phase one LEARN (4 bytes out,
+16 back) and one READ_GENOME of the download (119 bytes back).
+
+With ``check`` (default) the reference learning board (``ga.hardware_ga``) runs beside it and
+:class:`cosim.link_boards.LinkMismatch` is raised at the first learn whose download, counts,
+cycles or escape flag differ: the board never returns a wrong result silently.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from cosim.boards import LearnResult, ReferenceLearningBoard
+from cosim.link_boards import LinkMismatch
+from cosim.link_host import LinkClient, LinkError, pack, unpack
+from hdl.link_protocol import (LEARN_REPLY, LEARN_REQUEST, READ_GENOME_REQUEST, SEED_REQUEST, Command,
+                               Design, genome_bytes, layout_bytes)
+
+MAX_GENERATIONS = (1 << LEARN_REQUEST["generations"].width) - 1  # 4095
+
+
+class LinkLearningBoard:
+    """LearningBoard over a ``LinkClient`` to an ``ehw-learner`` board (see the module docstring).
+
+    The board's engine is a circuit constant: ``config`` must be the one it was built with (its
+    population is checked against IDENTIFY's ``p_max``; the lanes and rates are the build's)."""
+
+    def __init__(self, client: LinkClient, config, seed: int, population, reflex: bool = True,
+                 distance_rule: str = "covered", check: bool = True):
+        from ga.world_model import WorldModel
+
+        self.client = client
+        identity = client.identity or client.expect(Design.LEARNER)
+        if identity.p_max != config.population:
+            raise LinkError(f"{client.port}: the board's engine holds {identity.p_max} individuals, "
+                            f"the run's population is {config.population}")
+        self.config = config
+        self.model = WorldModel()  # the host's copy (the update rule needs the current entry)
+        self.reference = (ReferenceLearningBoard(config, seed, population, reflex, distance_rule)
+                          if check else None)
+        self.cycles = 0
+        self._serial = 0
+        client.set_reflex(reflex)
+        client.clear()
+        client.request(Command.SEED, pack(SEED_REQUEST, seed=int(seed) & 0xFFFFFFFF), reply_length=0)
+        self._load(population)
+
+    def _load(self, population) -> None:
+        from ga.genome import validate_rows
+
+        population = validate_rows(population)
+        if population.shape != (self.config.population, 50):
+            raise ValueError(f"the population is ({self.config.population}, 50), got {population.shape!r}")
+        self.client.load_genomes(population)
+
+    def load_population(self, population) -> None:
+        self._load(population)
+        if self.reference is not None:
+            self.reference.load_population(population)
+
+    def observe(self, state: int, motion: int, next_state: int, crashed: bool) -> None:
+        state, motion, next_state = int(state), int(motion), int(next_state)
+        self.model.observe(state, motion, next_state, bool(crashed))
+        self.client.observe(state, motion, int(self.model.next_state[state, motion]),
+                            bool(self.model.crash[state, motion]), reached=next_state)
+        if self.reference is not None:
+            self.reference.observe(state, motion, next_state, crashed)
+
+    def read_genome(self, index: int) -> np.ndarray:
+        from ga.genome import rows_from_int
+
+        reply = self.client.request(Command.READ_GENOME, pack(READ_GENOME_REQUEST, index=int(index)),
+                                    reply_length=genome_bytes())
+        return np.asarray(rows_from_int(int.from_bytes(reply, "little")), dtype=np.uint32)
+
+    def learn(self, generations: int, avoid: tuple[int, int] | None = None) -> LearnResult:
+        if not 1 <= int(generations) <= MAX_GENERATIONS:
+            raise ValueError(f"a LEARN runs 1..{MAX_GENERATIONS} generations, got {generations!r}")
+        self._serial = self._serial % 255 + 1  # never 0: the board's serial after reset
+        state, motion = avoid if avoid is not None else (0, 0)
+        payload = pack(LEARN_REQUEST, generations=int(generations), avoid_en=int(avoid is not None),
+                       avoid_state=int(state), avoid_motion=int(motion), serial=self._serial)
+        reply = unpack(LEARN_REPLY, self.client.request(Command.LEARN, payload, reply_length=layout_bytes(LEARN_REPLY)))
+        rows = self.read_genome(int(reply.index))
+        # the learn's clock edges, as on every backend: the busy cycles and the edge leaving Idle
+        result = LearnResult(rows, int(reply.crashes), int(reply.loops), int(reply.distance),
+                             cycles=int(reply.cycles) + 1, escaped=bool(reply.escaped))
+        self.cycles += result.cycles
+        if self.reference is not None:
+            want = self.reference.learn(generations, avoid)
+            got_counts = (result.crashes, result.loops, result.distance)
+            want_counts = (want.crashes, want.loops, want.distance)
+            if not (np.array_equal(want.rows, rows) and got_counts == want_counts
+                    and want.cycles == result.cycles and want.escaped == result.escaped):
+                raise LinkMismatch(f"{self.client.port}: learn({generations}, avoid={avoid}) gave {got_counts} in "
+                                   f"{result.cycles} cycles (escaped {result.escaped}), the reference "
+                                   f"{want_counts} in {want.cycles} (escaped {want.escaped}); downloads "
+                                   f"equal: {np.array_equal(want.rows, rows)}")
+        return result
+
+
+def make_serial_learning_boards(config, seed: int, population, *, reflex: bool = True,
+                                distance_rule: str = "covered", check: bool = True,
+                                port: str | None = None, baud: float | None = None):
+    """(controller board, learning board) of one ``ulx3s-learner`` board on a serial port
+    (default ``EHW_PORT``, ``EHW_BAUD``), both over the same link: the controller board beside
+    the engine drives the robot with the downloads."""
+    import os
+
+    from cosim.link_boards import BAUD_ENV, PORT_ENV, LinkControllerBoard, _baud_from_env, open_port
+
+    port = port or os.environ.get(PORT_ENV)
+    if not port:
+        raise LinkError(f"the serial learning board needs a port ({PORT_ENV}=/dev/ttyUSB1, {BAUD_ENV}=...)")
+    client = LinkClient(open_port(port, _baud_from_env() if baud is None else baud))
+    client.expect(Design.LEARNER)
+    controller = LinkControllerBoard(client, reflex=reflex, check=check)
+    controller.load(np.zeros(50, dtype=np.uint32))  # the board starts empty, as the reference
+    learning = LinkLearningBoard(client, config, seed, population, reflex=reflex,
+                                 distance_rule=distance_rule, check=check)
+    return controller, learning
