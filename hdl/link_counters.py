@@ -10,8 +10,10 @@ by an 8-bit adder: 2 x ``nbytes`` cycles (at most 12) an update.
 Addresses: IDENTIFY's reply at :data:`IDENTIFY_BASE`, ``COUNTERS_REPLY`` at
 :data:`COUNTERS_BASE` (little-endian, the reply's own layout).
 
-An update must not be asked for while one is running (``busy``): the link asks for at most one
-per frame (a frame is at least 7 bytes, 280 cycles at the fastest baud).
+A reset sweeps the counters to 0 (12 cycles, ``busy``): a RAM is not a register, and the
+counters count since reset. An update must not be asked for while the sweep or another update
+runs (``busy``): the link asks for at most one per frame (a frame is at least 7 bytes, 280 cycles
+at the fastest baud).
 """
 
 from amaranth.hdl import Cat, Module, Mux, Signal
@@ -80,7 +82,8 @@ class LinkCounters(wiring.Component):
         rd = ram.read_port()
         wr = ram.write_port()
 
-        address = Signal(range(DEPTH))  # the byte being updated
+        first, n_bytes = COUNTERS_BASE, layout_bytes(COUNTERS_REPLY)
+        address = Signal(range(DEPTH), init=first)  # the byte being updated (or swept)
         last = Signal(range(DEPTH))     # the field's last byte
         from_cycles = Signal()          # the addend is ``cycles`` (else 1)
         byte = Signal(range(8))         # its byte number in the field
@@ -92,12 +95,17 @@ class LinkCounters(wiring.Component):
                      wr.addr.eq(address), wr.data.eq(total[:8])]
 
         def update(name, cycles):
-            first, n_bytes = _field(name)
-            m.d.sync += [address.eq(first), last.eq(first + n_bytes - 1), from_cycles.eq(cycles),
+            base, size = _field(name)
+            m.d.sync += [address.eq(base), last.eq(base + size - 1), from_cycles.eq(cycles),
                          byte.eq(0), carry.eq(0)]
             m.next = "Read"
 
-        with m.FSM(init="Idle"):
+        with m.FSM(init="Clear"):
+            with m.State("Clear"):  # after reset: every counter byte to 0
+                m.d.comb += [self.busy.eq(1), wr.data.eq(0), wr.en.eq(1)]
+                m.d.sync += address.eq(address + 1)
+                with m.If(address == first + n_bytes - 1):
+                    m.next = "Idle"
             with m.State("Idle"):
                 m.d.comb += rd.addr.eq(self.addr)
                 with m.If(self.count_ok):

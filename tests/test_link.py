@@ -180,7 +180,8 @@ def test_single_buffered_evaluator_top_matches_the_reference():
 
 def test_link_counters_add_with_carries_across_bytes():
     """LinkCounters against Python integers: the byte-serial adds carry across bytes and wrap at
-    the field's width; IDENTIFY's bytes are read back as given."""
+    the field's width; IDENTIFY's bytes are read back as given; a reset clears the counters."""
+    from amaranth.hdl import ResetInserter, Signal
     from amaranth.sim import Simulator
 
     from hdl.link_counters import COUNTERS_BASE, IDENTIFY_BASE, LinkCounters
@@ -190,6 +191,7 @@ def test_link_counters_add_with_carries_across_bytes():
     rng = np.random.default_rng(SEED)
     identity = bytes(rng.integers(0, 256, layout_bytes(IDENTIFY_REPLY), dtype=np.uint8))
     dut = LinkCounters(identity)
+    reset = Signal()
     adds = [int(a) for a in rng.integers(0, 1 << 32, 70, dtype=np.uint64)]
     seen = {}
 
@@ -209,6 +211,7 @@ def test_link_counters_add_with_carries_across_bytes():
             await ctx.tick()
 
     async def bench(ctx):
+        await ctx.tick().until(~dut.busy)  # the sweep after reset
         seen["identity"] = await read(ctx, IDENTIFY_BASE, len(identity))
         for i in range(300):
             await pulse(ctx, dut.count_ok)
@@ -218,8 +221,14 @@ def test_link_counters_add_with_carries_across_bytes():
             ctx.set(dut.cycles, a)
             await pulse(ctx, dut.add_cycles)
         seen["counters"] = await read(ctx, COUNTERS_BASE, layout_bytes(COUNTERS_REPLY))
+        ctx.set(reset, 1)  # a reset sweeps the counters (the RAM itself keeps its bytes)
+        await ctx.tick()
+        ctx.set(reset, 0)
+        await ctx.tick().until(~dut.busy)
+        seen["after reset"] = await read(ctx, COUNTERS_BASE, layout_bytes(COUNTERS_REPLY))
+        seen["identity after reset"] = await read(ctx, IDENTIFY_BASE, len(identity))
 
-    sim = Simulator(dut)
+    sim = Simulator(ResetInserter(reset)(dut))
     sim.add_clock(1e-6)
     sim.add_testbench(bench)
     sim.run()
@@ -227,6 +236,8 @@ def test_link_counters_add_with_carries_across_bytes():
     got = unpack(COUNTERS_REPLY, seen["counters"])
     assert (got.frames_ok, got.frames_rejected, got.evaluator_cycles) == (300, 100, sum(adds) % (1 << 48))
     assert sum(adds) >= 1 << 32  # the adds carried into the fifth byte
+    assert seen["after reset"] == bytes(layout_bytes(COUNTERS_REPLY))
+    assert seen["identity after reset"] == identity
 
 
 def pack_index(index: int) -> bytes:
