@@ -118,7 +118,8 @@ class LearnerLinkTop(_LinkTop):
         avoid_en, avoid_state, avoid_motion = Signal(), Signal.like(eng.avoid_state), Signal.like(eng.avoid_motion)
         generations = Signal.like(req.generations)
         m.d.comb += [eng.avoid_en.eq(avoid_en), eng.avoid_state.eq(avoid_state),
-                     eng.avoid_motion.eq(avoid_motion), eng.generations.eq(generations)]
+                     eng.avoid_motion.eq(avoid_motion), eng.generations.eq(generations),
+                     link.counters.cycles.eq(reply.cycles)]
         with m.State(_state(Command.LEARN)):
             with m.If(req.serial == last_serial):
                 m.d.sync += link.reply[:len(result)].eq(result)
@@ -143,10 +144,11 @@ class LearnerLinkTop(_LinkTop):
                 m.d.sync += [reply.cycles.eq(eng.cycles), reply.index.eq(pick("index")),
                              reply.score.eq(pick("score")), reply.crashes.eq(pick("crashes")),
                              reply.loops.eq(pick("loops")), reply.distance.eq(pick("distance")),
-                             reply.escaped.eq(escaped),
-                             link.evaluator_cycles.eq(link.evaluator_cycles + eng.cycles)]
+                             reply.escaped.eq(escaped)]
                 m.next = "LearnReply"
         with m.State("LearnReply"):
+            # READ_COUNTERS' evaluator_cycles: the reply register holds until the next learn's end
+            m.d.comb += link.counters.add_cycles.eq(1)
             m.d.sync += link.reply[:len(result)].eq(result)
             link.answer(m, Status.OK, layout_bytes(LEARN_REPLY))
 

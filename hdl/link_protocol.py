@@ -35,7 +35,7 @@ import enum as py_enum
 import subprocess
 import zlib
 
-from amaranth.hdl import Module, Mux, Signal
+from amaranth.hdl import Cat, Module, Mux, Signal
 from amaranth.lib import crc, data, enum, wiring
 from amaranth.lib import stream
 from amaranth.lib.wiring import In, Out
@@ -321,12 +321,18 @@ class FrameReceiver(wiring.Component):
 class FrameSender(wiring.Component):
     """A reply frame -> bytes for the UART: ``SYNC``, header, payload fetched by index, CRC.
 
+    The CRC is bit-serial (:data:`LINK_CRC` at ``data_width=1``, most significant bit first, the
+    same CRC as the byte-wide one): each byte sent is fed in over the next ``CRC_CYCLES``
+    cycles, and the next byte is offered only then (the UART takes 10 bit times, at least 40
+    cycles, over a byte anyway). A third of the byte-wide CRC's logic cells on the iCE40.
+
     Ports
     -----
     data : Out(stream.Signature(8))
         Bytes to send.
     start : In(1), header : In(FrameHeader)
-        Send a frame with this header (taken when idle).
+        Send a frame with this header (taken when idle; ``header`` must hold until ``busy``
+        falls: it is read as the frame goes out, not copied).
     index : Out(8), byte : In(8)
         The payload byte the sender wants, and that byte (needed 2 cycles after ``index``
         changes: a synchronous RAM read fits).
@@ -341,23 +347,33 @@ class FrameSender(wiring.Component):
     busy: Out(1)
 
     FETCH_CYCLES = 2
+    CRC_CYCLES = 8
 
     def __init__(self):
         super().__init__()
 
     def elaborate(self, platform):
         m = Module()
-        check = m.submodules.crc = LINK_CRC.create()
-        header = Signal(FrameHeader)
+        check = m.submodules.crc = crc.catalog.CRC16_IBM_3740(data_width=1).create()
+        header = self.header
         position = Signal(8)
         wait = Signal(range(self.FETCH_CYCLES + 1))
+        feed = Signal(8)  # the last byte sent, its bits not yet in the CRC on top
+        feed_left = Signal(range(self.CRC_CYCLES + 1))
+        fed = feed_left == 0
         sent = self.data.valid & self.data.ready
 
-        m.d.comb += [self.index.eq(position), check.data.eq(self.data.payload)]
+        m.d.comb += [self.index.eq(position), check.data.eq(feed[7]), check.valid.eq(~fed)]
+        with m.If(~fed):
+            m.d.sync += [feed.eq(feed << 1), feed_left.eq(feed_left - 1)]
+
+        def crc_byte():  # the byte on the line goes into the CRC
+            with m.If(sent):
+                m.d.sync += [feed.eq(self.data.payload), feed_left.eq(self.CRC_CYCLES)]
+
         with m.FSM(init="Idle"):
             with m.State("Idle"):
                 with m.If(self.start):
-                    m.d.sync += header.eq(self.header)
                     m.next = "Sync"
             with m.State("Sync"):
                 m.d.comb += [self.busy.eq(1), self.data.payload.eq(SYNC), self.data.valid.eq(1),
@@ -366,8 +382,9 @@ class FrameSender(wiring.Component):
                     m.d.sync += position.eq(0)
                     m.next = "Header"
             with m.State("Header"):
-                m.d.comb += [self.busy.eq(1), self.data.valid.eq(1), check.valid.eq(sent),
+                m.d.comb += [self.busy.eq(1), self.data.valid.eq(fed),
                              self.data.payload.eq(header.as_value().word_select(position[:2], 8))]
+                crc_byte()
                 with m.If(sent):
                     m.d.sync += position.eq(position + 1)
                     with m.If(position == HEADER_BYTES - 1):
@@ -382,8 +399,8 @@ class FrameSender(wiring.Component):
                 with m.If(wait == 1):
                     m.next = "Payload"
             with m.State("Payload"):
-                m.d.comb += [self.busy.eq(1), self.data.valid.eq(1), check.valid.eq(sent),
-                             self.data.payload.eq(self.byte)]
+                m.d.comb += [self.busy.eq(1), self.data.valid.eq(fed), self.data.payload.eq(self.byte)]
+                crc_byte()
                 with m.If(sent):
                     m.d.sync += [position.eq(position + 1), wait.eq(self.FETCH_CYCLES)]
                     m.next = "Fetch"
@@ -391,7 +408,7 @@ class FrameSender(wiring.Component):
                         m.d.sync += position.eq(0)
                         m.next = "Crc"
             with m.State("Crc"):
-                m.d.comb += [self.busy.eq(1), self.data.valid.eq(1),
+                m.d.comb += [self.busy.eq(1), self.data.valid.eq(fed),
                              self.data.payload.eq(Mux(position == 0, check.crc[8:], check.crc[:8]))]
                 with m.If(sent):
                     m.d.sync += position.eq(position + 1)
@@ -403,6 +420,12 @@ class FrameSender(wiring.Component):
 class RowAssembler(wiring.Component):
     """Genome bytes (bit 8j + i = byte j bit i) -> the 50 row writes of SPEC section 3.
 
+    Bit-serial: a byte is shifted into the 19-bit row register one bit a cycle (8 cycles), and a
+    row is written when its 19th bit is in. No barrel shifter: about a third of the logic cells
+    of a byte-wide assembler on the iCE40 (docs/fpga.md). A byte must come at least
+    ``BYTE_CYCLES + 1`` cycles after the last one; the UART delivers one every 10 bit times,
+    at least 40 cycles (``hdl.uart.MIN_DIVISOR``).
+
     Ports
     -----
     restart : In(1)
@@ -410,8 +433,11 @@ class RowAssembler(wiring.Component):
     byte : In(8), valid : In(1)
         The next genome byte.
     row : Out(RowWriteSignature(50))
-        The boards' row-write port: one write whenever 19 bits are in (registered).
+        The boards' row-write port: one write (a one-cycle ``we``) whenever 19 bits are in, at
+        most ``BYTE_CYCLES + 1`` cycles after the ``valid`` of the byte that completes the row.
     """
+
+    BYTE_CYCLES = 8  # cycles to shift one byte in
 
     def __init__(self):
         super().__init__({
@@ -423,19 +449,26 @@ class RowAssembler(wiring.Component):
 
     def elaborate(self, platform):
         m = Module()
-        pending = Signal(ROW_BITS + 8)  # bits not yet in a row (< 19), LSB first
-        have = Signal(range(ROW_BITS + 8))
+        byte = Signal(8)                               # the byte being shifted in, LSB next
+        bits_left = Signal(range(self.BYTE_CYCLES + 1))
+        shreg = Signal(ROW_BITS)                       # the row's bits so far, the newest on top
+        have = Signal(range(ROW_BITS))                 # bits of the row in shreg
         row = Signal(range(N_ROWS + 1))
-        merged = Signal(ROW_BITS + 8)
-        m.d.comb += merged.eq(pending | (self.byte << have))
+        shift = (bits_left != 0) & (row < N_ROWS)
+
+        m.d.comb += [self.row.addr.eq(row), self.row.data.eq(shreg)]
         m.d.sync += self.row.we.eq(0)
+        with m.If(self.row.we):
+            m.d.sync += row.eq(row + 1)
         with m.If(self.restart):
-            m.d.sync += [pending.eq(0), have.eq(0), row.eq(0)]
-        with m.Elif(self.valid & (row < N_ROWS)):
-            with m.If(have + 8 >= ROW_BITS):
-                m.d.sync += [self.row.addr.eq(row), self.row.data.eq(merged[:ROW_BITS]),
-                             self.row.we.eq(1), pending.eq(merged[ROW_BITS:]),
-                             have.eq(have + 8 - ROW_BITS), row.eq(row + 1)]
+            m.d.sync += [bits_left.eq(0), have.eq(0), row.eq(0)]
+        with m.Elif(self.valid):
+            m.d.sync += [byte.eq(self.byte), bits_left.eq(self.BYTE_CYCLES)]
+        with m.Elif(shift):
+            m.d.sync += [shreg.eq(Cat(shreg[1:], byte[0])), byte.eq(byte >> 1),
+                         bits_left.eq(bits_left - 1)]
+            with m.If(have == ROW_BITS - 1):  # the row is complete after this shift
+                m.d.sync += [have.eq(0), self.row.we.eq(1)]
             with m.Else():
-                m.d.sync += [pending.eq(merged), have.eq(have + 8)]
+                m.d.sync += have.eq(have + 1)
         return m

@@ -13,7 +13,7 @@ commits only when its CRC checks: the double buffer is what keeps a corrupted fr
 driving the robot.
 """
 
-from amaranth.hdl import Array, Const, Module, Signal
+from amaranth.hdl import Array, Const, Module, Signal, Value
 from amaranth.lib import data, wiring
 from amaranth.lib.wiring import In, Out
 
@@ -28,6 +28,7 @@ from hdl.link_protocol import (ARG_BYTES, DEFAULT_TIMEOUT_S, DESIGN_COMMANDS, EV
                                REFLEX_REQUEST, REQUEST_LENGTH, RESULT_BYTES, RESULT_REPLY,
                                RESULTS_PER_READ, Command, Design, FrameReceiver, FrameSender,
                                RowAssembler, Status, default_build_id, layout_bytes)
+from hdl.link_counters import COUNTERS_BASE, IDENTIFY_BASE, LinkCounters
 from hdl.uart import DEFAULT_BAUD, UART
 
 
@@ -49,9 +50,10 @@ class _Link:
         self.length = Signal(8)    # reply payload bytes
         self.reply = Signal(8 * 32)  # reply payload (byte i = bits 8i..8i+7) unless a top overrides
         self.args = Signal(8 * ARG_BYTES)  # the first request payload bytes
-        self.frames_ok = Signal(32)
-        self.frames_rejected = Signal(16)
-        self.evaluator_cycles = Signal(48)
+        # IDENTIFY's reply and the counters of READ_COUNTERS live in a block RAM
+        identity = IDENTIFY_REPLY.const(top.identity()).as_value().value
+        self.counters = m.submodules.counters = LinkCounters(
+            identity.to_bytes(layout_bytes(IDENTIFY_REPLY), "little"))
 
         rcv = self.rcv
         with m.If(rcv.byte_valid & (rcv.index < ARG_BYTES)):
@@ -71,6 +73,12 @@ class _Link:
             self.snd.header.length.eq(self.length),
             self.snd.byte.eq(self.reply.word_select(self.snd.index[:5], 8)),
         ]
+        with m.If(self.command == Command.IDENTIFY.value):
+            m.d.comb += [self.counters.addr.eq(IDENTIFY_BASE + self.snd.index),
+                         self.snd.byte.eq(self.counters.data)]
+        with m.If(self.command == Command.READ_COUNTERS.value):
+            m.d.comb += [self.counters.addr.eq(COUNTERS_BASE + self.snd.index),
+                         self.snd.byte.eq(self.counters.data)]
 
     def rows_for(self, m, command: Command, port):
         """Drive the row-write ``port`` from the assembler, writing only in a frame of ``command``."""
@@ -86,6 +94,16 @@ class _Link:
 
     def reply_as(self, layout):
         return data.View(layout, self.reply[:data.Layout.cast(layout).size])
+
+    def serve(self, m, command: Command, value):
+        """Send the reply payload of ``command`` straight from ``value`` (a view or value of its
+        layout that holds still from the command state to the end of the reply), byte by byte as
+        the sender asks, instead of copying it into ``reply`` first: no flip-flops for it."""
+        value = Value.cast(value)
+        n_bytes = (len(value) + 7) // 8
+        index = self.snd.index[:max(1, (n_bytes - 1).bit_length())]
+        with m.If(self.command == command.value):
+            m.d.comb += self.snd.byte.eq(value.word_select(index, 8))
 
     def answer(self, m, status: Status, length=0):
         """Send a reply (from a command state): ``status``, ``length`` payload bytes."""
@@ -141,36 +159,34 @@ class _LinkTop(wiring.Component):
         with m.FSM(init="Listen"):
             with m.State("Listen"):
                 with m.If(rcv.truncated):
-                    m.d.sync += [link.command.eq(rcv.header.command), link.tag.eq(rcv.header.tag),
-                                 link.frames_rejected.eq(link.frames_rejected + 1)]
+                    m.d.sync += [link.command.eq(rcv.header.command), link.tag.eq(rcv.header.tag)]
+                    m.d.comb += link.counters.count_rejected.eq(1)
                     link.answer(m, Status.TRUNCATED)
                 with m.Elif(rcv.done):
                     m.d.sync += [link.command.eq(rcv.header.command), link.tag.eq(rcv.header.tag)]
                     with m.If(~rcv.ok):
-                        m.d.sync += link.frames_rejected.eq(link.frames_rejected + 1)
+                        m.d.comb += link.counters.count_rejected.eq(1)
                         link.answer(m, Status.BAD_CRC)
                     with m.Else():
                         with m.Switch(rcv.header.command):
                             for command in self.commands:
                                 with m.Case(command.value):
                                     with m.If(rcv.header.length != REQUEST_LENGTH[command]):
-                                        m.d.sync += link.frames_rejected.eq(link.frames_rejected + 1)
+                                        m.d.comb += link.counters.count_rejected.eq(1)
                                         link.answer(m, Status.BAD_LENGTH)
                                     with m.Else():
-                                        m.d.sync += link.frames_ok.eq(link.frames_ok + 1)
+                                        m.d.comb += link.counters.count_ok.eq(1)
                                         m.next = _state(command)
                             with m.Default():
-                                m.d.sync += link.frames_rejected.eq(link.frames_rejected + 1)
+                                m.d.comb += link.counters.count_rejected.eq(1)
                                 link.answer(m, Status.UNKNOWN_COMMAND)
+            # both replies are read from the counters' RAM, once its update of this frame is done
             with m.State(_state(Command.IDENTIFY)):
-                m.d.sync += link.reply_as(IDENTIFY_REPLY).eq(IDENTIFY_REPLY.const(self.identity()))
-                link.answer(m, Status.OK, layout_bytes(IDENTIFY_REPLY))
+                with m.If(~link.counters.busy):
+                    link.answer(m, Status.OK, layout_bytes(IDENTIFY_REPLY))
             with m.State(_state(Command.READ_COUNTERS)):
-                view = link.reply_as(COUNTERS_REPLY)
-                m.d.sync += [view.frames_ok.eq(link.frames_ok),
-                             view.frames_rejected.eq(link.frames_rejected),
-                             view.evaluator_cycles.eq(link.evaluator_cycles)]
-                link.answer(m, Status.OK, layout_bytes(COUNTERS_REPLY))
+                with m.If(~link.counters.busy):
+                    link.answer(m, Status.OK, layout_bytes(COUNTERS_REPLY))
             self._states(m, link)
             with m.State("Reply"):
                 m.d.comb += link.snd.start.eq(1)
@@ -308,9 +324,17 @@ class EvaluatorLinkTop(_LinkTop):
         self._reflex = Signal()
         self._loaded = Signal()
         link.rows_for(m, Command.LOAD_GENOME, ev.row)
-        m.d.comb += ev.reflex_en.eq(self._reflex)
+        m.d.comb += [ev.reflex_en.eq(self._reflex),
+                     link.counters.cycles.eq(ev.cycles)]  # a result register: holds until the next
         with m.If(link.writes(Command.LOAD_GENOME)):
             m.d.sync += self._loaded.eq(0)
+        # the evaluator's result registers change only at the edge that ends an evaluation, and
+        # only EVALUATE starts one (its reply follows ``done``): served in place
+        cycles, result = Signal(EVALUATE_REPLY), Signal(RESULT_REPLY)
+        m.d.comb += [cycles.cycles.eq(ev.cycles), result.result.crashes.eq(ev.crashes),
+                     result.result.loops.eq(ev.loops), result.result.distance.eq(ev.distance)]
+        link.serve(m, Command.EVALUATE, cycles)
+        link.serve(m, Command.READ_RESULTS, result)
 
     def _states(self, m, link):
         ev = self._ev
@@ -334,17 +358,13 @@ class EvaluatorLinkTop(_LinkTop):
                 m.next = "EvaluateWait"
         with m.State("EvaluateWait"):
             with m.If(ev.done):
-                m.d.sync += [link.reply_as(EVALUATE_REPLY).cycles.eq(ev.cycles),
-                             link.evaluator_cycles.eq(link.evaluator_cycles + ev.cycles)]
+                m.d.comb += link.counters.add_cycles.eq(1)
                 link.answer(m, Status.OK, layout_bytes(EVALUATE_REPLY))
         with m.State(_state(Command.READ_RESULTS)):
             req = link.args_as(READ_RESULTS_REQUEST)
             with m.If((req.first != 0) | (req.count != 1)):
                 link.answer(m, Status.BAD_ARGUMENT)
             with m.Else():
-                result = link.reply_as(RESULT_REPLY).result
-                m.d.sync += [result.crashes.eq(ev.crashes), result.loops.eq(ev.loops),
-                             result.distance.eq(ev.distance)]
                 link.answer(m, Status.OK, RESULT_BYTES)
 
 
@@ -379,6 +399,7 @@ class SystemLinkTop(_LinkTop):
         m.d.comb += [
             top.ctl_reflex_en.eq(self._reflex), top.ev_reflex_en.eq(self._reflex),
             top.pop_data.eq(genome),
+            link.counters.cycles.eq(top.pop_cycles),  # holds from pop_done to the next go
         ]
         # READ_RESULTS: payload byte i is byte i % 5 of result first + i // 5 (tables, not dividers)
         req = link.args_as(READ_RESULTS_REQUEST)
@@ -414,8 +435,8 @@ class SystemLinkTop(_LinkTop):
                 m.next = "EvaluateWait"
         with m.State("EvaluateWait"):
             with m.If(top.pop_done):
-                m.d.sync += [link.reply_as(EVALUATE_REPLY).cycles.eq(top.pop_cycles),
-                             link.evaluator_cycles.eq(link.evaluator_cycles + top.pop_cycles)]
+                m.d.sync += link.reply_as(EVALUATE_REPLY).cycles.eq(top.pop_cycles)
+                m.d.comb += link.counters.add_cycles.eq(1)
                 link.answer(m, Status.OK, layout_bytes(EVALUATE_REPLY))
         with m.State(_state(Command.READ_RESULTS)):
             req = link.args_as(READ_RESULTS_REQUEST)

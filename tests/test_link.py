@@ -47,6 +47,51 @@ def test_frame_encoding_matches_the_gateware_definitions():
         encode_frame(Command.MOTION, bytes(256))
 
 
+def test_row_assembler_writes_the_genome_rows_bit_serially():
+    """RowAssembler against ga.genome: random genomes, bytes as close as it allows, a restart
+    mid-genome; every row once, in order, equal to the reference rows."""
+    from amaranth.sim import Simulator
+
+    from hdl.link_protocol import RowAssembler
+
+    rng = np.random.default_rng(SEED)
+    genomes = [rng.integers(0, 1 << 19, 50, dtype=np.uint32) for _ in range(3)]
+    dut = RowAssembler()
+    writes = []
+
+    genome = [0]
+
+    async def bench(ctx):
+        for k, rows in enumerate(genomes):
+            genome[0] = k
+            ctx.set(dut.restart, 1)
+            await ctx.tick()
+            ctx.set(dut.restart, 0)
+            payload = genome_payload(rows)
+            if k == 1:  # a restart after half a genome: the next one starts at row 0
+                payload = payload[:60]
+            for byte in payload:
+                ctx.set(dut.byte, byte)
+                ctx.set(dut.valid, 1)
+                await ctx.tick()
+                ctx.set(dut.valid, 0)
+                await ctx.tick().repeat(RowAssembler.BYTE_CYCLES)  # the closest bytes may come
+            await ctx.tick().repeat(2 * RowAssembler.BYTE_CYCLES)
+
+    async def monitor(ctx):
+        async for _, _, we, addr, data in ctx.tick().sample(dut.row.we, dut.row.addr, dut.row.data):
+            if we:
+                writes.append((genome[0], addr, data))
+
+    sim = Simulator(dut)
+    sim.add_clock(1e-6)
+    sim.add_testbench(bench)
+    sim.add_process(monitor)
+    sim.run()
+    expect = [(k, r, int(rows[r])) for k, rows in enumerate(genomes) for r in range(50 if k != 1 else 25)]
+    assert writes == expect
+
+
 def _client(top, timeout_cycles=20_000):
     line = AmaranthSerial(top, timeout_cycles=timeout_cycles, name=f"amaranth {type(top).__name__}")
     return LinkClient(line), line
@@ -126,7 +171,73 @@ def test_single_buffered_evaluator_top_matches_the_reference():
     assert unpack(FrameHeader, line.read(7)[1:5]).status == Status.BAD_CRC.value
     with pytest.raises(LinkError, match="NOT_LOADED"):
         client.evaluate(1)
-    assert board.evaluate(pop[:1]).crashes[0] == want.crashes[0]  # the board class reloads
+    last = board.evaluate(pop[:1])  # the board class reloads
+    assert last.crashes[0] == want.crashes[0]
+    before, after = client.read_counters(), client.read_counters()
+    assert before["evaluator_cycles"] == counts.cycles + last.cycles and before["frames_rejected"] == 1
+    assert after == {**before, "frames_ok": before["frames_ok"] + 1}
+
+
+def test_link_counters_add_with_carries_across_bytes():
+    """LinkCounters against Python integers: the byte-serial adds carry across bytes and wrap at
+    the field's width; IDENTIFY's bytes are read back as given; a reset clears the counters."""
+    from amaranth.hdl import ResetInserter, Signal
+    from amaranth.sim import Simulator
+
+    from hdl.link_counters import COUNTERS_BASE, IDENTIFY_BASE, LinkCounters
+    from hdl.link_protocol import COUNTERS_REPLY, IDENTIFY_REPLY
+    from hdl.link_protocol import layout_bytes
+
+    rng = np.random.default_rng(SEED)
+    identity = bytes(rng.integers(0, 256, layout_bytes(IDENTIFY_REPLY), dtype=np.uint8))
+    dut = LinkCounters(identity)
+    reset = Signal()
+    adds = [int(a) for a in rng.integers(0, 1 << 32, 70, dtype=np.uint64)]
+    seen = {}
+
+    async def read(ctx, base, n):
+        out = bytearray()
+        for i in range(n):
+            ctx.set(dut.addr, base + i)
+            await ctx.tick()
+            out.append(ctx.get(dut.data))
+        return bytes(out)
+
+    async def pulse(ctx, port):
+        ctx.set(port, 1)
+        await ctx.tick()
+        ctx.set(port, 0)
+        while ctx.get(dut.busy):
+            await ctx.tick()
+
+    async def bench(ctx):
+        await ctx.tick().until(~dut.busy)  # the sweep after reset
+        seen["identity"] = await read(ctx, IDENTIFY_BASE, len(identity))
+        for i in range(300):
+            await pulse(ctx, dut.count_ok)
+            if i % 3 == 0:
+                await pulse(ctx, dut.count_rejected)
+        for a in adds:
+            ctx.set(dut.cycles, a)
+            await pulse(ctx, dut.add_cycles)
+        seen["counters"] = await read(ctx, COUNTERS_BASE, layout_bytes(COUNTERS_REPLY))
+        ctx.set(reset, 1)  # a reset sweeps the counters (the RAM itself keeps its bytes)
+        await ctx.tick()
+        ctx.set(reset, 0)
+        await ctx.tick().until(~dut.busy)
+        seen["after reset"] = await read(ctx, COUNTERS_BASE, layout_bytes(COUNTERS_REPLY))
+        seen["identity after reset"] = await read(ctx, IDENTIFY_BASE, len(identity))
+
+    sim = Simulator(ResetInserter(reset)(dut))
+    sim.add_clock(1e-6)
+    sim.add_testbench(bench)
+    sim.run()
+    assert seen["identity"] == identity
+    got = unpack(COUNTERS_REPLY, seen["counters"])
+    assert (got.frames_ok, got.frames_rejected, got.evaluator_cycles) == (300, 100, sum(adds) % (1 << 48))
+    assert sum(adds) >= 1 << 32  # the adds carried into the fifth byte
+    assert seen["after reset"] == bytes(layout_bytes(COUNTERS_REPLY))
+    assert seen["identity after reset"] == identity
 
 
 def pack_index(index: int) -> bytes:
