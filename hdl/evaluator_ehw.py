@@ -220,9 +220,11 @@ class EvaluatorEHW(wiring.Component):
         tested = Signal(N_STATES)
         trace = Signal(N_STATES)
         add_state = self.state_we & self.ready
-        with m.If(add_state & ~_bit_of(m, in_set, self.state_value, "value_in_set")):
+        value_in_set = _bit_of(m, in_set, self.state_value, "value_in_set")
+        value_hot = _one_hot(m, self.state_value, N_STATES, "value_hot")
+        with m.If(add_state & ~value_in_set):
             m.d.sync += [
-                in_set.eq(in_set | _one_hot(m, self.state_value, N_STATES, "value_hot")),
+                in_set.eq(in_set | value_hot),
                 self.n_states.eq(self.n_states + 1),
             ]
 
