@@ -7,7 +7,8 @@ The process that is started (``python -m cosim.online``) only launches the simul
 EHW + evaluator EHW + population streamer), builds it with Icarus or Verilator (``EHW_SIM``)
 through ``cosim.cocotb_run.run_cocotb`` and runs the cocotb test of ``cosim.cocotb_online``,
 which writes ``summary.json``; this process reads it and prints the same table as the other
-backends. ``WAVES=1`` dumps the simulation next to the build.
+backends. On Verilator the toplevel is ``system_top_clocked`` (:func:`clocked_top_verilog`: the
+clock generated in the Verilog, built with ``--timing``), 2x faster than cocotb's GPI clock. ``WAVES=1`` dumps the simulation next to the build.
 """
 
 from __future__ import annotations
