@@ -34,6 +34,9 @@ from hdl.ports import CocotbPins
 
 P_MAX_ENV = "EHW_SYSTEM_P_MAX"  # the population RAM depth of the Verilog under test
 CLOCK_PERIOD_NS = 10  # simulated clock; the hardware time uses the FPGA clock (EHW_CLOCK_HZ)
+# "1": the toplevel generates its own clock (cosim.cocotb_launch.clocked_top_verilog), so the
+# test starts none; else cocotb's GPI clock drives the top's clk input
+CLOCK_INSIDE_ENV = "EHW_CLOCK_INSIDE"
 
 _active_system = None  # the CocotbSystem of the running test (inside the simulator only): activate()
 
@@ -42,20 +45,27 @@ class CocotbSystem:
     """The system top under cocotb: ``call(job, *args)`` runs a ``SystemHost`` coroutine from the
     experiment's thread (``cocotb.task.resume``)."""
 
-    def __init__(self, dut, p_max: int | None = None):
+    def __init__(self, dut, p_max: int | None = None, clock_inside: bool | None = None):
         from hdl.system_top import P_MAX, SystemHost
 
         self.dut = dut
+        if clock_inside is None:
+            clock_inside = os.environ.get(CLOCK_INSIDE_ENV, "0") not in ("", "0")
+        self.clock_inside = clock_inside
         self.pins = CocotbPins(dut)
         self.host = SystemHost(self.pins, p_max=p_max or int(os.environ.get(P_MAX_ENV, P_MAX)))
 
     async def start(self) -> None:
-        """Clock, synchronous reset, then the evaluator's RAM sweep (Boot + Clear)."""
+        """Clock (unless the top has its own), synchronous reset, then the evaluator's RAM sweep
+        (Boot + Clear)."""
         from cocotb.clock import Clock
 
-        Clock(self.dut.clk, CLOCK_PERIOD_NS, unit="ns", impl="gpi").start(start_high=False)
+        if not self.clock_inside:
+            Clock(self.dut.clk, CLOCK_PERIOD_NS, unit="ns", impl="gpi").start(start_high=False)
         self.dut.rst.value = 1
-        await self.pins.tick()  # the first falling edge is the clock's start: no rising edge yet
+        # GPI clock: the first falling edge is the clock's start (no rising edge yet); a clock
+        # inside the top falls first at 10 ns: one more edge in reset, which changes nothing
+        await self.pins.tick()
         await self.pins.tick()
         self.dut.rst.value = 0
         await self.host.boot()

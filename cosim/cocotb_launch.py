@@ -7,7 +7,8 @@ The process that is started (``python -m cosim.online``) only launches the simul
 EHW + evaluator EHW + population streamer), builds it with Icarus or Verilator (``EHW_SIM``)
 through ``cosim.cocotb_run.run_cocotb`` and runs the cocotb test of ``cosim.cocotb_online``,
 which writes ``summary.json``; this process reads it and prints the same table as the other
-backends. ``WAVES=1`` dumps the simulation next to the build.
+backends. On Verilator the toplevel is ``system_top_clocked`` (:func:`clocked_top_verilog`: the
+clock generated in the Verilog, built with ``--timing``), 2x faster than cocotb's GPI clock. ``WAVES=1`` dumps the simulation next to the build.
 """
 
 from __future__ import annotations
@@ -17,18 +18,46 @@ import os
 from pathlib import Path
 
 from cosim.amaranth_backend import SAMPLE_ENV
+from cosim.cocotb_backend import CLOCK_INSIDE_ENV, CLOCK_PERIOD_NS
 from cosim.cocotb_online import CONFIG_ENV, OPTIONS_ENV
 from cosim.cocotb_run import REPO_ROOT, SIM_BUILD, icarus_time_zero_fix, run_cocotb, simulator_default
 from cosim.hardware_time import hardware_line
 from ga.motions import DEFAULT_DISTANCE_RULE
 
 TOPLEVEL = "system_top"
+CLOCKED_TOPLEVEL = "system_top_clocked"  # TOPLEVEL with its clock generated inside (Verilator runs)
+
+
+def clocked_top_verilog(top, core: str = TOPLEVEL, name: str = CLOCKED_TOPLEVEL,
+                        period_ns: int = CLOCK_PERIOD_NS) -> str:
+    """A Verilog module ``name`` that holds module ``core`` (the Verilog of the Amaranth component
+    ``top``, which has ``clk`` and ``rst``) with every port but ``clk`` brought out, and the clock
+    generated inside: ``always #(period/2) clk = ~clk`` from 0 at time 0 (falling edges at
+    multiples of the period, as cocotb's clock started low). In Verilator (``--timing``) this
+    saves cocotb's GPI clock, a VPI write of the top's clk input at every half period and the
+    input-combinational settle it triggers (docs/hdl_in_the_loop.md)."""
+    from amaranth.hdl import Value
+    from amaranth.lib import wiring
+
+    if period_ns % 2:
+        raise ValueError(f"period_ns must be even (a whole half period), got {period_ns!r}")
+    ports = [("rst", 1, "input")]
+    for path, member, value in top.signature.flatten(top):
+        ports.append(("__".join(map(str, path)), len(Value.cast(value)),
+                      "input" if member.flow == wiring.In else "output"))
+    decls = [f"  {direction} {f'[{width - 1}:0] ' if width > 1 else ''}{port};" for port, width, direction in ports]
+    conns = ",\n".join(f"    .{port}({port})" for port, _, _ in [("clk", 1, "")] + ports)
+    return (f"module {name}({', '.join(port for port, _, _ in ports)});\n" + "\n".join(decls)
+            + f"\n  reg clk = 1'b0;\n  always #{period_ns // 2} clk = ~clk;\n"
+            + f"  {core} core (\n{conns}\n  );\nendmodule\n")
 
 
 def write_system_verilog(out_dir: Path | str | None = None, p_max: int | None = None,
-                         distance_rule: str = DEFAULT_DISTANCE_RULE) -> Path:
-    """``system_top.v`` for Icarus (regenerated each time: a few seconds); ``p_max`` other than
-    the default gives a smaller population RAM (tests: set ``EHW_SYSTEM_P_MAX`` to match)."""
+                         distance_rule: str = DEFAULT_DISTANCE_RULE, clock_inside: bool = False) -> Path:
+    """``system_top.v`` (regenerated each time: a few seconds); ``p_max`` other than the default
+    gives a smaller population RAM (tests: set ``EHW_SYSTEM_P_MAX`` to match). ``clock_inside``:
+    the file also holds :func:`clocked_top_verilog`'s ``system_top_clocked`` (the toplevel of a
+    run with ``EHW_CLOCK_INSIDE=1``)."""
     from amaranth.back import verilog
 
     from hdl.system_top import P_MAX, SystemTop
@@ -37,7 +66,10 @@ def write_system_verilog(out_dir: Path | str | None = None, p_max: int | None = 
     out.mkdir(parents=True, exist_ok=True)
     path = out / f"{TOPLEVEL}.v"
     top = SystemTop(p_max=P_MAX if p_max is None else p_max, distance_rule=distance_rule)
-    path.write_text(icarus_time_zero_fix(verilog.convert(top, name=TOPLEVEL, emit_src=False)))
+    text = icarus_time_zero_fix(verilog.convert(top, name=TOPLEVEL, emit_src=False))
+    if clock_inside:
+        text += "\n" + clocked_top_verilog(top)
+    path.write_text(text)
     return path
 
 
@@ -50,6 +82,8 @@ def run_online_cocotb(config, out: Path | str, *, resume: bool = False, plots: b
     ``sample``: HDL-evaluate only that many controllers per population (spot-check mode; default
     ``EHW_HDL_SAMPLE`` or all). ``simulator``: ``icarus`` or ``verilator`` (default ``EHW_SIM``
     or Icarus; see ``cosim.cocotb_run``)."""
+    simulator = simulator or simulator_default()
+    clock_inside = simulator == "verilator"  # its own clock: one eval a half period, no VPI clock
     out = Path(out).resolve()
     out.mkdir(parents=True, exist_ok=True)
     summary_path = out / "summary.json"
@@ -58,17 +92,18 @@ def run_online_cocotb(config, out: Path | str, *, resume: bool = False, plots: b
     if rule != DEFAULT_DISTANCE_RULE and build_name == TOPLEVEL:
         build_name = f"{TOPLEVEL}_{rule}"  # other Verilog: its own build
     # one folder per build: runs may overlap
-    source = write_system_verilog(SIM_BUILD / f"{build_name}_verilog", distance_rule=rule)
+    source = write_system_verilog(SIM_BUILD / f"{build_name}_verilog", distance_rule=rule, clock_inside=clock_inside)
     options = {"out": str(out), "resume": resume, "plots": plots, "progress": progress}
-    env = {CONFIG_ENV: json.dumps(config.to_dict()), OPTIONS_ENV: json.dumps(options)}
+    env = {CONFIG_ENV: json.dumps(config.to_dict()), OPTIONS_ENV: json.dumps(options),
+           CLOCK_INSIDE_ENV: str(int(clock_inside))}
     if clock_hz is not None:  # else the run in the simulator finds the measured clock itself
         env["EHW_CLOCK_HZ"] = str(clock_hz)
     if sample is not None:  # spot-check mode (cosim.amaranth_backend.HDLEvaluatorBoard)
         env[SAMPLE_ENV] = str(int(sample))
     run_cocotb(
-        sources=[source], toplevel=TOPLEVEL, test_module="cosim.cocotb_online", test_dir=REPO_ROOT,
-        build_name=build_name, testcase="online_experiment", waves=waves,
-        extra_env=env, simulator=simulator,
+        sources=[source], toplevel=CLOCKED_TOPLEVEL if clock_inside else TOPLEVEL,
+        test_module="cosim.cocotb_online", test_dir=REPO_ROOT, build_name=build_name,
+        testcase="online_experiment", waves=waves, extra_env=env, simulator=simulator, timing=clock_inside,
     )
     return json.loads(summary_path.read_text())
 

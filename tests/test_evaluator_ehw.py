@@ -278,3 +278,32 @@ def test_cocotb_verilog_forward_distance_rule_matches_reference(tmp_path):
         extra_env={"EHW_DISTANCE_RULE": "forward"},
     )
     assert n_tests == 1
+
+
+def test_state_set_helpers_equal_bit_select_and_shift_for_every_index():
+    """The evaluator's bit test and one-hot (``_bit_of``, ``_one_hot``: word muxes, no wide shift)
+    are the functions of ``bits.bit_select(index, 1)`` and ``1 << index``, for all 256 indices."""
+    from amaranth.hdl import Module, Signal
+
+    from hdl.evaluator_ehw import _bit_of, _one_hot
+
+    m = Module()
+    bits, index = Signal(256), Signal(8)
+    bit = _bit_of(m, bits, index, "bit")
+    hot = _one_hot(m, index, 256, "hot")
+    pattern = int.from_bytes(np.random.default_rng(12).bytes(32), "little")
+    seen = []
+
+    async def testbench(ctx):
+        for value in (pattern, ~pattern & ((1 << 256) - 1)):
+            ctx.set(bits, value)
+            for i in range(256):
+                ctx.set(index, i)
+                assert ctx.get(bit) == (value >> i) & 1, (i, value)
+                assert ctx.get(hot) == 1 << i, i
+                seen.append(i)
+
+    sim = Simulator(m)
+    sim.add_testbench(testbench)
+    sim.run()
+    assert len(seen) == 512
