@@ -74,8 +74,7 @@ import numpy as np
 from ga.evaluator import EvalResult, evaluate_population
 from ga.genome import LITERAL_MASK, N_ROWS, OUTPUT_MASK, OUTPUT_SHIFT, ROW_DTYPE, validate_rows
 from ga.motions import MAX_MOTION_DISTANCE_MM, OBSTACLE_MASK
-from ga.operators import DEFAULT_LITERAL_P, CONTRADICTION, DONT_CARE, NEGATIVE, POSITIVE
-from ga.truth_table import truth_tables
+from ga.operators import DEFAULT_LITERAL_P, CONTRADICTION, DONT_CARE, NEGATIVE, POSITIVE, row_fires, row_outputs
 from ga.world_model import WorldModel
 
 # -- the random source -----------------------------------------------------------------------------
@@ -158,6 +157,18 @@ def _power_tables(count: int = 24) -> list[np.ndarray]:
 
 
 _POWERS = _power_tables()
+_HALF_TABLES: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+
+
+def _half_tables(k: int) -> tuple[np.ndarray, np.ndarray]:
+    """The map of ``_POWERS[k]`` as two 16-bit tables (low half, high half): two look-ups a word
+    instead of four (built when first used, 512 KB per power)."""
+    pair = _HALF_TABLES.get(k)
+    if pair is None:
+        v = np.arange(1 << 16, dtype=np.uint32)
+        t = _POWERS[k]
+        pair = _HALF_TABLES[k] = (t[0][v & 0xFF] ^ t[1][v >> 8], t[2][v & 0xFF] ^ t[3][v >> 8])
+    return pair
 
 
 def xorshift_stream(states, n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -174,7 +185,9 @@ def xorshift_stream(states, n: int) -> tuple[np.ndarray, np.ndarray]:
     filled, k = 1, 0
     while filled < n:
         take = min(filled, n - filled)
-        out[..., filled:filled + take] = _apply(_POWERS[k], out[..., :take])
+        low, high = _half_tables(k)
+        block = out[..., :take]
+        np.bitwise_xor(low[block & 0xFFFF], high[block >> 16], out=out[..., filled:filled + take])
         filled += take
         k += 1
     return out, out[..., -1].copy()
@@ -303,6 +316,22 @@ def learn_cycles(n_states: int, config: HardwareGAConfig, generations: int) -> i
 
 def _mutate_rows(words, r0, r1, r2, r3, r4, r5, config: HardwareGAConfig):
     """The four row mutations of the module docstring on row words (any shape, uint32)."""
+    u32, f16 = np.uint32, np.uint32(FIELD16_SHIFT)
+    # Most rows have no event (about 6 % have one at the default rates): the datapath below runs
+    # on those that do; a row without an event comes out unchanged.
+    touched = np.flatnonzero(((r0 >> f16) < config.literal_threshold)
+                             | ((r1 >> f16) < config.output_threshold)
+                             | ((r2 >> f16) < config.switch_threshold)
+                             | ((r3 >> f16) < config.replace_threshold))
+    out = np.asarray(words).astype(ROW_DTYPE).ravel()
+    if touched.size:
+        out[touched] = _mutate_datapath(*(np.asarray(v).ravel()[touched] for v in (words, r0, r1, r2, r3, r4, r5)),
+                                        config)
+    return out.reshape(np.shape(words))
+
+
+def _mutate_datapath(words, r0, r1, r2, r3, r4, r5, config: HardwareGAConfig):
+    """The row mutation datapath on every row given (what each lane computes on every row)."""
     w = words.astype(np.uint32, copy=True)
     u32 = np.uint32
     # 1. literal
@@ -405,7 +434,8 @@ class HardwareGA:
         self.escape_index = None
         if avoid is not None:
             state, motion = avoid
-            eligible = truth_tables(children, reflex=False)[:, state] != motion
+            motions = np.bitwise_or.reduce(np.where(row_fires(children, state), row_outputs(children), 0), axis=-1)
+            eligible = motions != motion  # the array's motion in the state (truth_tables, reflex=False)
             if eligible.any():
                 self.escape_index = int(np.flatnonzero(eligible)[np.argmax(self.scores[eligible])])
         self.passes += 1
@@ -420,8 +450,8 @@ class HardwareGA:
             raise ValueError(f"generations must be a positive integer, got {generations!r}")
         if avoid is not None and not (int(avoid[0]) & OBSTACLE_MASK):
             raise ValueError(f"the escape needs a state with an obstacle bit, got {avoid!r}")
-        for _ in range(generations):
-            self.run_pass(model, reflex, distance_rule, avoid)
+        for g in range(generations):  # only the last pass's escape child is read
+            self.run_pass(model, reflex, distance_rule, avoid if g == generations - 1 else None)
         self.cycles += 1
         index = self.download_index
         return (self.population[index].copy(), self.counts.row(index),
