@@ -53,6 +53,14 @@ class AmaranthLearningBoard(SimulatorJobs):
         if self.reference is not None:
             self.reference.observe(state, motion, next_state, crashed)
 
+    def state_dict(self) -> dict:
+        """The engine state, from the reference beside the HDL (equal at every learn): what the
+        checkpoint holds. No ``load_state``: the engine has no port to load generator states and
+        scores, so a resumed run replays the learns (``cosim.online.OnlineRun.load_state``)."""
+        if self.reference is None:
+            raise RuntimeError("the engine state comes from the reference board (check=True)")
+        return {"engine": self.reference.ga.state_dict(), "cycles": self.cycles}
+
     async def _learn(self, generations, avoid):
         index, counts, _score, _cycles, edges = await self.host.learn(generations, self.reflex, avoid)
         escaped = avoid is not None and bool(self.host.ctx.get(self.dut.escape_found)) \

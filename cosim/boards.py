@@ -271,6 +271,19 @@ class ReferenceLearningBoard:
     def observe(self, state: int, motion: int, next_state: int, crashed: bool) -> None:
         self.model.observe(int(state), int(motion), int(next_state), bool(crashed))
 
+    def state_dict(self) -> dict:
+        """The engine between two learns (``HardwareGA.state_dict``) and the cycle counter: with
+        the world model (rebuilt by replaying the observations) the whole board."""
+        return {"engine": self.ga.state_dict(), "cycles": self.cycles}
+
+    def load_state(self, d: dict) -> None:
+        from ga.hardware_ga import HardwareGA
+
+        ga = HardwareGA.from_state_dict(d["engine"])
+        if ga.config != self.config:
+            raise ValueError(f"the saved engine has {ga.config!r}, this board {self.config!r}")
+        self.ga, self.cycles = ga, int(d["cycles"])
+
     def learn(self, generations: int, avoid: tuple[int, int] | None = None) -> LearnResult:
         t0 = time.process_time()
         rows, counts, cycles = self.ga.learn(self.model, generations, self.reflex, self.distance_rule, avoid)

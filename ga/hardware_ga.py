@@ -95,6 +95,7 @@ TO_DC_SHIFT = 8  # ROW0 bits 8..15
 CHOICE_MASK = 0xFF  # ROW1, ROW2, ROW3 bits 0..7
 FRESH_POLARITY_SHIFT = 8  # ROW3 bits 8..15: polarity of fresh literal i (0: x_i)
 SCORE_BITS = 17
+STATE_FORMAT = 1  # of HardwareGA.state_dict
 
 
 def seed_salt(lane: int, generator: int) -> int:
@@ -456,6 +457,39 @@ class HardwareGA:
         index = self.download_index
         return (self.population[index].copy(), self.counts.row(index),
                 learn_cycles(model.n_states, self.config, generations))
+
+    def state_dict(self) -> dict:
+        """Everything a later pass depends on, as JSON values (the engine between two learns):
+        population, scores and counts of the last pass, generator states, counters."""
+        counts = self.counts
+        return {
+            "format": STATE_FORMAT, "config": self.config.to_dict(), "seed": self.seed,
+            "population": self.population.astype("<u4").tobytes().hex(),
+            "scores": None if self.scores is None else self.scores.tolist(),
+            "counts": None if counts is None else [counts.crashes.tolist(), counts.loops.tolist(),
+                                                   counts.distance.tolist()],
+            "generators": self.generators.tolist(), "passes": self.passes, "cycles": self.cycles,
+            "escape_index": self.escape_index,
+        }
+
+    @classmethod
+    def from_state_dict(cls, d: dict) -> "HardwareGA":
+        """The engine of ``state_dict`` output: its next pass is the saved engine's next pass."""
+        if d.get("format") != STATE_FORMAT:
+            raise ValueError(f"hardware GA state format {d.get('format')!r} is not {STATE_FORMAT}")
+        config = HardwareGAConfig(**d["config"])
+        population = np.frombuffer(bytes.fromhex(d["population"]), dtype="<u4").reshape(-1, N_ROWS)
+        ga = cls(config, d["seed"], population.astype(ROW_DTYPE))
+        generators = np.asarray(d["generators"], dtype=np.uint32)
+        if generators.shape != ga.generators.shape:
+            raise ValueError(f"hardware GA state has generators of shape {generators.shape!r}, "
+                             f"expected {ga.generators.shape!r}")
+        ga.generators = generators
+        if d["scores"] is not None:
+            ga.scores = np.asarray(d["scores"], dtype=np.int64)
+            ga.counts = EvalResult(*(np.asarray(c, dtype=np.int64) for c in d["counts"]))
+        ga.passes, ga.cycles, ga.escape_index = int(d["passes"]), int(d["cycles"]), d["escape_index"]
+        return ga
 
     @property
     def download_index(self) -> int:

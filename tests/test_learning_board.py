@@ -34,3 +34,101 @@ def test_hardware_ga_option_checks(capsys):
         OnlineConfig(ga="hardware", lanes=0)
     assert main(["--ga", "hardware", "--backend", "cocotb", "--out", "/nonexistent"]) == 2
     assert capsys.readouterr().err.startswith("error: --ga hardware runs on")
+
+
+# -- resume (the engine's state in the checkpoint) ----------------------------------------------------
+
+HW_SMALL = dict(ga="hardware", arena="one_obstacle", n_targets=6, population=40, tournament=5, lanes=3,
+                generations_per_phase=3, max_leg_steps=300, loop_window=60)
+
+
+def _figures(run) -> dict:
+    summary = run.summary()
+    summary.pop("wall_time_s")
+    summary.pop("hardware", None)  # a software timing beside the cycle counts
+    return summary
+
+
+def test_hardware_ga_resume_equals_uninterrupted(tmp_path):
+    """A run stopped after 2 phases and resumed from its checkpoint (the reference engine's
+    population, scores, counts and generator states) is the uninterrupted run."""
+    config = OnlineConfig(seed=5, **HW_SMALL)
+    whole = make_run(config, out=tmp_path / "whole").run()
+    assert len(whole.phases) >= 4, "the test needs a run with several learning phases"
+    part = make_run(config, out=tmp_path / "part").run(stop_after_phases=2)
+    assert part.targets < config.n_targets
+    resumed = make_run(config, out=tmp_path / "part", resume=True)
+    assert resumed.evaluator.state_dict() == part.evaluator.state_dict()
+    assert resumed.evaluator.model == part.evaluator.model
+    resumed.run()
+    assert _figures(resumed) == _figures(whole) and resumed.motions == whole.motions
+    assert resumed.evaluator.state_dict() == whole.evaluator.state_dict()
+
+
+def test_hardware_ga_resume_refuses_an_edited_engine_state(tmp_path):
+    import json
+
+    from cosim.checkpoint import CheckpointError
+
+    config = OnlineConfig(seed=5, **HW_SMALL)
+    make_run(config, out=tmp_path).run(stop_after_phases=1)
+    path = tmp_path / "checkpoint.json"
+    payload = json.loads(path.read_text())
+    payload["state"]["learning_board"]["engine"]["generators"][0][0] ^= 1
+    path.write_text(json.dumps(payload))
+    with pytest.raises(CheckpointError, match="checksum"):
+        make_run(config, out=tmp_path, resume=True)
+
+
+def test_killed_hardware_ga_run_resumes_to_the_uninterrupted_summary(tmp_path):
+    """``ehw sim --ga hardware`` killed (SIGKILL) after a few checkpoints, then ``--resume``."""
+    import json
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    args = ["--seed", "5", "--ga", "hardware", "--arena", "one_obstacle", "--targets", "12",
+            "--population", "60", "--tournament", "5", "--lanes", "3", "--generations-per-phase", "3",
+            "--no-plots", "--quiet"]
+    ehw = [sys.executable, "-m", "cosim.cli", "sim"]
+    env = {**os.environ, "PYTHONPATH": os.getcwd()}
+    subprocess.run(ehw + args + ["--out", "whole"], cwd=tmp_path, env=env, check=True, capture_output=True)
+    whole = json.loads((tmp_path / "whole/summary.json").read_text())
+    proc = subprocess.Popen(ehw + args + ["--out", "part"], cwd=tmp_path, env=env,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    checkpoint = tmp_path / "part/checkpoint.json"
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and proc.poll() is None:
+        try:
+            if len(json.loads(checkpoint.read_text())["state"]["phases"]) >= 3:
+                break
+        except (OSError, ValueError, KeyError):
+            pass
+        time.sleep(0.05)
+    assert proc.poll() is None, "the run ended before it could be killed"
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    assert not (tmp_path / "part/summary.json").exists()
+    subprocess.run(ehw + ["--resume", "--out", "part", "--quiet", "--no-plots"], cwd=tmp_path, env=env,
+                   check=True, capture_output=True)
+    resumed = json.loads((tmp_path / "part/summary.json").read_text())
+    for summary in (whole, resumed):
+        summary.pop("wall_time_s")
+        summary.pop("hardware", None)
+    assert resumed == whole
+
+
+def test_amaranth_learning_board_resumes_by_replaying_its_learns(tmp_path):
+    """The HDL engine has no port to load generator states and scores: a resumed run on the
+    Amaranth board replays the learns where they happened and checks the engine state it reaches."""
+    config = OnlineConfig(seed=2, ga="hardware", population=6, tournament=2, lanes=2, generations_per_phase=2)
+    whole = make_run(config).run(stop_after_phases=2)  # the reference (equal to Amaranth: above)
+    make_run(config, out=tmp_path).run(stop_after_phases=1)  # a checkpoint holds the engine state
+    resumed = make_run(config, "amaranth", out=tmp_path, resume=True)
+    resumed.run(stop_after_phases=2)
+    keys = ("reason", "interactions", "best_fitness", "best_distance", "new_motion", "engine_cycles")
+    assert [[p[k] for k in keys] for p in resumed.phases] == [[p[k] for k in keys] for p in whole.phases]
+    assert resumed.motions == whole.motions
+    assert resumed.evaluator.state_dict()["engine"] == whole.evaluator.state_dict()["engine"]
