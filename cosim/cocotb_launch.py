@@ -57,16 +57,25 @@ def run_online_cocotb(config, out: Path | str, *, resume: bool = False, plots: b
     rule = config.distance_rule
     if rule != DEFAULT_DISTANCE_RULE and build_name == TOPLEVEL:
         build_name = f"{TOPLEVEL}_{rule}"  # other Verilog: its own build
-    # one folder per build: runs may overlap
-    source = write_system_verilog(SIM_BUILD / f"{build_name}_verilog", distance_rule=rule)
     options = {"out": str(out), "resume": resume, "plots": plots, "progress": progress}
     env = {CONFIG_ENV: json.dumps(config.to_dict()), OPTIONS_ENV: json.dumps(options)}
+    toplevel = TOPLEVEL
+    if config.ga == "hardware":  # the learning engine beside the controller (cosim.cocotb_learning)
+        from cosim import cocotb_learning
+        from cosim.learning_phase import hardware_ga_config
+
+        ga_config = hardware_ga_config(config)
+        toplevel, build_name = cocotb_learning.TOPLEVEL, cocotb_learning.build_name(ga_config, rule)
+        source = cocotb_learning.write_learning_verilog(SIM_BUILD / f"{build_name}_verilog", ga_config, rule)
+        env[cocotb_learning.CONFIG_ENV] = json.dumps(ga_config.to_dict())
+    else:  # one folder per build: runs may overlap
+        source = write_system_verilog(SIM_BUILD / f"{build_name}_verilog", distance_rule=rule)
     if clock_hz is not None:  # else the run in the simulator finds the measured clock itself
         env["EHW_CLOCK_HZ"] = str(clock_hz)
     if sample is not None:  # spot-check mode (cosim.amaranth_backend.HDLEvaluatorBoard)
         env[SAMPLE_ENV] = str(int(sample))
     run_cocotb(
-        sources=[source], toplevel=TOPLEVEL, test_module="cosim.cocotb_online", test_dir=REPO_ROOT,
+        sources=[source], toplevel=toplevel, test_module="cosim.cocotb_online", test_dir=REPO_ROOT,
         build_name=build_name, testcase="online_experiment", waves=waves,
         extra_env=env, simulator=simulator,
     )

@@ -45,6 +45,10 @@ async def online_experiment(dut):
     config = json.loads(os.environ[CONFIG_ENV])
     options = json.loads(os.environ[OPTIONS_ENV])
     system = CocotbSystem(dut)
+    if config.get("ga") == "hardware":  # learning_system_top: the engine's inputs too
+        from cosim.cocotb_learning import zero_learner_inputs
+
+        zero_learner_inputs(dut)
     await system.start()
     activate(system)
     try:

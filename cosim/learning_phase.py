@@ -30,6 +30,15 @@ def hardware_seed(seed: int) -> int:
     return int(np.random.SeedSequence([int(seed), 14]).generate_state(1)[0])
 
 
+def check_learning_backend(config, backend: str) -> None:
+    """Refuse ``--ga hardware`` on a backend without a learning board (a user error)."""
+    from cosim.boards import LEARNING_BACKENDS, BackendUnavailable
+
+    if config.ga == "hardware" and backend not in LEARNING_BACKENDS:
+        raise BackendUnavailable(f"--ga hardware runs on --backend {', '.join(LEARNING_BACKENDS)} (no "
+                                 f"{backend} learning board yet)")
+
+
 def phase_avoid(config, reason: str, state: int, motion: int):
     """The learn's ``avoid`` of a phase: (state, motion) after a time-out or loop in an obstacle
     state (the escape), else None."""

@@ -32,7 +32,7 @@ def test_hardware_ga_option_checks(capsys):
         OnlineConfig(ga="gpu")
     with pytest.raises(ValueError, match="--lanes must be"):
         OnlineConfig(ga="hardware", lanes=0)
-    assert main(["--ga", "hardware", "--backend", "cocotb", "--out", "/nonexistent"]) == 2
+    assert main(["--ga", "hardware", "--backend", "uart", "--out", "/nonexistent"]) == 2
     assert capsys.readouterr().err.startswith("error: --ga hardware runs on")
 
 
