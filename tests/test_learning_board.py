@@ -1,4 +1,5 @@
-"""The learning board (cosim.boards.LearningBoard): reference and Amaranth backends agree, and the
+"""The learning board (cosim.boards.LearningBoard): the reference, Amaranth and cocotb (Icarus,
+Verilator) backends agree on a short --ga hardware lifetime; --resume with --ga hardware; the
 on-line run's --ga hardware option."""
 
 import pytest
@@ -7,17 +8,58 @@ from cosim.online import OnlineConfig, make_run
 from cosim.online_cli import main
 
 
-def test_online_hardware_ga_reference_equals_amaranth():
-    """Two phases of --ga hardware on both backends (the Amaranth learning board also checks
+# A short lifetime of --ga hardware (3 targets, 4 learning phases, one escape) on every backend.
+SHORT = OnlineConfig(seed=1, ga="hardware", arena="one_obstacle", n_targets=3, population=6, tournament=2,
+                     lanes=2, generations_per_phase=2)
+
+
+def _comparable(summary: dict) -> dict:
+    summary = dict(summary)
+    for key in ("wall_time_s", "hardware", "backend"):  # timings, the backend's name
+        summary.pop(key, None)
+    summary["board_cycles"] = summary["board_cycles"]["evaluator"]  # the controller's: HDL only
+    return summary
+
+
+@pytest.fixture(scope="module")
+def short_runs():
+    """The short lifetime on the reference and the Amaranth learning board (which also checks
     every learn against its own reference: cosim.amaranth_learning)."""
-    config = OnlineConfig(seed=2, ga="hardware", population=6, tournament=2, lanes=2,
-                          generations_per_phase=2)
-    runs = [make_run(config, b).run(stop_after_phases=2) for b in ("reference", "amaranth")]
-    keys = ("reason", "interactions", "best_fitness", "best_crashes", "best_loops", "best_distance",
-            "new_motion", "engine_cycles")
-    assert [[p[k] for k in keys] for p in runs[0].phases] == [[p[k] for k in keys] for p in runs[1].phases]
-    assert runs[0].motions == runs[1].motions and len(runs[0].phases) == 2
-    assert runs[0].generations == 4 and runs[0].genetic_operations == 24
+    return {backend: make_run(SHORT, backend).run().summary() for backend in ("reference", "amaranth")}
+
+
+def test_online_hardware_ga_reference_equals_amaranth(short_runs):
+    ref, ama = short_runs["reference"], short_runs["amaranth"]
+    assert ref["targets_reached"] == 3 and ref["learning_phases"] >= 3
+    assert any(p.get("escaped") for p in ref["phases"]) and all(p["engine_cycles"] > 0 for p in ref["phases"])
+    assert _comparable(ama) == _comparable(ref)
+    assert ref["generations"] == 2 * ref["learning_phases"]
+
+
+@pytest.mark.cocotb
+@pytest.mark.parametrize("simulator", ["icarus", pytest.param("verilator", marks=pytest.mark.verilator)])
+def test_online_hardware_ga_cocotb_equals_reference_and_amaranth(short_runs, simulator, tmp_path):
+    """The same lifetime inside a cocotb test on learning_system_top's Verilog: the engine
+    learns every phase (checked against the reference at each learn), the controller EHW drives."""
+    from cosim.cocotb_launch import run_online_cocotb
+
+    summary = run_online_cocotb(SHORT, tmp_path, simulator=simulator)
+    assert summary["backend"] == "cocotb"
+    assert _comparable(summary) == _comparable(short_runs["reference"])
+    assert summary["board_cycles"] == short_runs["amaranth"]["board_cycles"]  # controller cycles too
+    assert summary["board_cycles"]["controller"] > 0
+
+
+def test_learner_host_drives_every_engine_input():
+    from amaranth.lib import wiring
+
+    from ga.hardware_ga import HardwareGAConfig
+    from hdl.learning_system_top import LEARNER_INPUTS, PREFIX, LearningSystemTop
+
+    top = LearningSystemTop(HardwareGAConfig(population=6, tournament=2, lanes=2))
+    inputs = {"__".join(map(str, path)) for path, member, _ in top.signature.flatten(top)
+              if member.flow == wiring.In and path[0].startswith(PREFIX)}
+    assert inputs == {PREFIX + name for name in LEARNER_INPUTS}
 
 
 def test_online_hardware_ga_learns():
