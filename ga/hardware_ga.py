@@ -158,39 +158,36 @@ def _power_tables(count: int = 24) -> list[np.ndarray]:
 
 
 _POWERS = _power_tables()
-_HALF_TABLES: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-
-
-def _half_tables(k: int) -> tuple[np.ndarray, np.ndarray]:
-    """The map of ``_POWERS[k]`` as two 16-bit tables (low half, high half): two look-ups a word
-    instead of four (built when first used, 512 KB per power)."""
-    pair = _HALF_TABLES.get(k)
-    if pair is None:
-        v = np.arange(1 << 16, dtype=np.uint32)
-        t = _POWERS[k]
-        pair = _HALF_TABLES[k] = (t[0][v & 0xFF] ^ t[1][v >> 8], t[2][v & 0xFF] ^ t[3][v >> 8])
-    return pair
+_BLOCK_LOG2 = 4  # xorshift_stream: the recurrence runs 16 steps from every 16th state
 
 
 def xorshift_stream(states, n: int) -> tuple[np.ndarray, np.ndarray]:
     """The next ``n`` draws of every generator in ``states`` (any shape, uint32): an array of
     shape states.shape + (n,), and the states after them. No Python loop over the draws: the
-    block of draws k..2k-1 is the step map to the power k applied to draws 0..k-1."""
+    states after 0, 16, 32, ... steps come from doubling on the linear step map (the block of
+    jumps k..2k-1 is the map to the power 16 k applied to jumps 0..k-1), then 16 steps of the
+    recurrence run from all of them at once."""
     states = np.asarray(states, dtype=np.uint32)
     if n <= 0:
         return np.zeros(states.shape + (0,), dtype=np.uint32), states.copy()
     if n > 1 << len(_POWERS):
         raise ValueError(f"at most {1 << len(_POWERS)} draws at once, asked {n!r}")
-    out = np.empty(states.shape + (n,), dtype=np.uint32)
-    out[..., 0] = _step_words(states)
-    filled, k = 1, 0
-    while filled < n:
-        take = min(filled, n - filled)
-        low, high = _half_tables(k)
-        block = out[..., :take]
-        np.bitwise_xor(low[block & 0xFFFF], high[block >> 16], out=out[..., filled:filled + take])
+    block = 1 << _BLOCK_LOG2
+    m = -(-n // block)
+    starts = np.empty(states.shape + (m,), dtype=np.uint32)
+    starts[..., 0] = states
+    filled, k = 1, _BLOCK_LOG2
+    while filled < m:
+        take = min(filled, m - filled)
+        starts[..., filled:filled + take] = _apply(_POWERS[k], starts[..., :take])
         filled += take
         k += 1
+    out = np.empty(states.shape + (m, block), dtype=np.uint32)
+    x = starts
+    for i in range(block):
+        x = _step_words(x)
+        out[..., i] = x
+    out = out.reshape(states.shape + (m * block,))[..., :n]
     return out, out[..., -1].copy()
 
 
