@@ -6,7 +6,8 @@ The process that is started (``python -m cosim.online``) only launches the simul
 (:func:`run_online_cocotb`): it writes ``system_top.v`` (``hdl.system_top.SystemTop``: controller
 EHW + evaluator EHW + population streamer), builds it with Icarus or Verilator (``EHW_SIM``)
 through ``cosim.cocotb_run.run_cocotb`` and runs the cocotb test of ``cosim.cocotb_online``,
-which writes ``summary.json``; this process reads it and prints the same table as the other
+which writes ``summary.json`` (with ``--ga hardware`` the top is ``learning_system_top``, the
+engine built for the run's parameters: ``cosim.cocotb_learning``); this process reads it and prints the same table as the other
 backends. ``WAVES=1`` dumps the simulation next to the build.
 """
 
