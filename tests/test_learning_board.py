@@ -131,8 +131,8 @@ def test_killed_hardware_ga_run_resumes_to_the_uninterrupted_summary(tmp_path):
     import sys
     import time
 
-    args = ["--seed", "5", "--ga", "hardware", "--arena", "one_obstacle", "--targets", "12",
-            "--population", "60", "--tournament", "5", "--lanes", "3", "--generations-per-phase", "3",
+    # 36 phases of ~30 ms: the kill after the 3rd checkpoint leaves most of the run to resume
+    args = ["--seed", "7", "--ga", "hardware", "--targets", "8", "--population", "200", "--lanes", "4",
             "--no-plots", "--quiet"]
     ehw = [sys.executable, "-m", "cosim.cli", "sim"]
     env = {**os.environ, "PYTHONPATH": os.getcwd()}
@@ -148,11 +148,12 @@ def test_killed_hardware_ga_run_resumes_to_the_uninterrupted_summary(tmp_path):
                 break
         except (OSError, ValueError, KeyError):
             pass
-        time.sleep(0.05)
+        time.sleep(0.01)
     assert proc.poll() is None, "the run ended before it could be killed"
     proc.send_signal(signal.SIGKILL)
     proc.wait()
     assert not (tmp_path / "part/summary.json").exists()
+    assert 3 <= len(json.loads(checkpoint.read_text())["state"]["phases"]) < whole["learning_phases"]
     subprocess.run(ehw + ["--resume", "--out", "part", "--quiet", "--no-plots"], cwd=tmp_path, env=env,
                    check=True, capture_output=True)
     resumed = json.loads((tmp_path / "part/summary.json").read_text())
