@@ -1,9 +1,10 @@
 """Quality of --ga hardware against the host GA: on-line lifetimes over seeds (issue 14).
 
-    .venv/bin/python -m benchmarks.learning_quality --seeds 21-40 [--max-interactions 40000]
+    .venv/bin/python -m benchmarks.learning_quality --seeds 21-40 [--max-interactions 40000] [--ga hardware]
 
 Runs the default on-line configuration (reference backend) with ``ga="host"`` and
-``ga="hardware"`` on each seed, alternately, appending one JSON line per lifetime to
+``ga="hardware"`` on each seed, alternately (``--ga``: only one of them, e.g. when the host GA's
+lifetimes come from ``ehw compare``), appending one JSON line per lifetime to
 ``results/learning_quality.jsonl`` (a seed already there is skipped, so the command resumes), then
 prints the median interactions to 64 targets of both and their ratio. Not part of ``make bench``
 (hours on this machine).
@@ -28,12 +29,13 @@ def _seeds(text: str) -> list[int]:
 def run_one(seed: int, ga: str, max_interactions: int) -> dict:
     from cosim.online import OnlineConfig, make_run
 
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     run = make_run(OnlineConfig(seed=seed, ga=ga, max_interactions=max_interactions), "reference")
     run.run()
     return {"seed": seed, "ga": ga, "targets": run.targets, "interactions": run.interactions,
             "generations": run.generations, "world_states": run.mirror.n_states,
-            "max_interactions": max_interactions, "wall_s": round(time.perf_counter() - t0, 1)}
+            "max_interactions": max_interactions, "wall_s": round(time.perf_counter() - t0, 1),
+            "cpu_s": round(time.process_time() - c0, 1)}
 
 
 def report(rows: list[dict]) -> dict:
@@ -54,12 +56,14 @@ def main(argv=None) -> int:
     p.add_argument("--seeds", default="21-40")
     p.add_argument("--max-interactions", type=int, default=40_000)
     p.add_argument("--out", type=Path, default=OUT)
+    p.add_argument("--ga", choices=("host", "hardware", "both"), default="both",
+                   help="the GA(s) to run on each seed (default both)")
     args = p.parse_args(argv)
     rows = [json.loads(line) for line in args.out.read_text().splitlines()] if args.out.exists() else []
     done = {(r["seed"], r["ga"]) for r in rows}
     args.out.parent.mkdir(parents=True, exist_ok=True)
     for seed in _seeds(args.seeds):
-        for ga in ("host", "hardware"):
+        for ga in ("host", "hardware") if args.ga == "both" else (args.ga,):
             if (seed, ga) in done:
                 continue
             row = run_one(seed, ga, args.max_interactions)

@@ -1,10 +1,16 @@
-"""The ``amaranth`` learning board: ``hdl.learner.Learner`` cycle-accurate in Amaranth's simulator.
+"""The HDL learning boards: ``hdl.learner.Learner`` cycle-accurate behind the LearningBoard interface.
 
-As ``cosim.amaranth_backend``: one Simulator for the whole run, one serving testbench that runs
-*jobs* (coroutines of ``hdl.learner.LearnerSimHost``) put in its slot by the board calls, waiting
-in 1 ps steps between them. The reference learning board (``cosim.boards``) runs beside it and
+:class:`HDLLearningBoard` is the board over any engine: a ``call(job, *args)`` that runs a
+coroutine in the simulator and an ``hdl.learning_system_top.LearnerHost`` over that simulator's
+pins (the one host driver). The reference learning board (``cosim.boards``) runs beside it and
 every learn is checked against it (``check=True``): the download, its counts and the cycles.
-Slow (a few hundred cycles per second of the simulator): for small populations and tests.
+
+- ``amaranth`` (:class:`AmaranthLearningBoard`, here): a bare ``Learner`` in Amaranth's simulator,
+  as ``cosim.amaranth_backend``: one Simulator for the whole run, one serving testbench that runs
+  the jobs the board calls put in its slot. Slow (a few hundred cycles per second of the
+  simulator): for small populations and tests.
+- ``cocotb`` (``cosim.cocotb_learning``): the engine's Verilog in ``learning_system_top`` under
+  cocotb (Icarus or Verilator).
 """
 
 from __future__ import annotations
@@ -15,28 +21,21 @@ from cosim.amaranth_backend import SIM_PERIOD_S, BoardMismatch, SimulatorJobs
 from cosim.boards import LearnResult, ReferenceLearningBoard
 
 
-class AmaranthLearningBoard(SimulatorJobs):
-    def __init__(self, config, seed: int, population, reflex: bool = True,
+class HDLLearningBoard:
+    """A LearningBoard on an HDL engine: ``call`` runs a job (a coroutine of ``host``, a
+    ``LearnerHost``) in the simulator. ``cycles``: the engine's clock edges of every learn (its
+    ``cycles`` register + the start edge, checked against the reference's count)."""
+
+    def __init__(self, call, host, config, seed: int, population, reflex: bool = True,
                  distance_rule: str = "covered", check: bool = True):
-        from amaranth.sim import Simulator
-
         from ga.world_model import WorldModel
-        from hdl.learner import Learner, LearnerSimHost
 
+        self.call, self.host = call, host
         self.config, self.reflex = config, bool(reflex)
         self.reference = ReferenceLearningBoard(config, seed, population, reflex, distance_rule) if check else None
         self.mirror = WorldModel()  # the host side of the update rule (what the entry becomes)
-        self.dut = Learner(config, distance_rule)
-        self.sim = Simulator(self.dut)
-        self.sim.add_clock(SIM_PERIOD_S)
-        self.sim.add_testbench(self._serve)
-        self._host_class = LearnerSimHost
-        self.host = None
         self.cycles = 0
         self.call(self._boot, int(seed), np.asarray(population))
-
-    def _attach(self, ctx) -> None:
-        self.host = self._host_class(ctx, self.dut)
 
     async def _boot(self, seed, population):
         await self.host.wait_ready()
@@ -53,12 +52,18 @@ class AmaranthLearningBoard(SimulatorJobs):
         if self.reference is not None:
             self.reference.observe(state, motion, next_state, crashed)
 
+    def state_dict(self) -> dict:
+        """The engine state, from the reference beside the HDL (equal at every learn): what the
+        checkpoint holds. No ``load_state``: the engine has no port to load generator states and
+        scores, so a resumed run replays the learns (``cosim.online.OnlineRun.load_state``)."""
+        if self.reference is None:
+            raise RuntimeError("the engine state comes from the reference board (check=True)")
+        return {"engine": self.reference.ga.state_dict(), "cycles": self.cycles}
+
     async def _learn(self, generations, avoid):
-        index, counts, _score, _cycles, edges = await self.host.learn(generations, self.reflex, avoid)
-        escaped = avoid is not None and bool(self.host.ctx.get(self.dut.escape_found)) \
-            and index != self.host.ctx.get(self.dut.best_index)
+        index, counts, _score, register, escaped = await self.host.learn(generations, self.reflex, avoid)
         rows = await self.host.read_genome(index)
-        return np.array(rows, dtype=np.uint32), counts, edges, escaped
+        return np.array(rows, dtype=np.uint32), counts, register + 1, escaped
 
     def learn(self, generations: int, avoid: tuple[int, int] | None = None) -> LearnResult:
         rows, counts, edges, escaped = self.call(self._learn, int(generations), avoid)
@@ -67,8 +72,37 @@ class AmaranthLearningBoard(SimulatorJobs):
         if self.reference is not None:
             want = self.reference.learn(generations, avoid)
             if not (np.array_equal(want.rows, rows) and (want.crashes, want.loops, want.distance) == counts
-                    and want.cycles == edges):
-                raise BoardMismatch(f"learn({generations}, avoid={avoid}): Amaranth {counts} in {edges} "
+                    and want.cycles == edges and want.escaped == escaped):
+                raise BoardMismatch(f"learn({generations}, avoid={avoid}): HDL {counts} in {edges} "
                                     f"cycles, reference {(want.crashes, want.loops, want.distance)} in "
                                     f"{want.cycles}; downloads equal: {np.array_equal(want.rows, rows)}")
         return result
+
+
+class _LearnerSimulator(SimulatorJobs):
+    """A bare ``Learner`` in Amaranth's simulator, serving jobs over ``AmaranthPins``."""
+
+    def __init__(self, config, distance_rule: str):
+        from amaranth.sim import Simulator
+
+        from hdl.learner import Learner
+        from hdl.ports import AmaranthPins
+
+        self.dut = Learner(config, distance_rule)
+        self.pins = AmaranthPins(self.dut)
+        self.sim = Simulator(self.dut)
+        self.sim.add_clock(SIM_PERIOD_S)
+        self.sim.add_testbench(self._serve)
+
+    def _attach(self, ctx) -> None:
+        self.pins.ctx = ctx
+
+
+class AmaranthLearningBoard(HDLLearningBoard):
+    def __init__(self, config, seed: int, population, reflex: bool = True,
+                 distance_rule: str = "covered", check: bool = True):
+        from hdl.learning_system_top import LearnerHost
+
+        self.simulator = _LearnerSimulator(config, distance_rule)
+        super().__init__(self.simulator.call, LearnerHost(self.simulator.pins, prefix=""), config, seed,
+                         population, reflex, distance_rule, check)

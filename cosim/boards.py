@@ -271,6 +271,19 @@ class ReferenceLearningBoard:
     def observe(self, state: int, motion: int, next_state: int, crashed: bool) -> None:
         self.model.observe(int(state), int(motion), int(next_state), bool(crashed))
 
+    def state_dict(self) -> dict:
+        """The engine between two learns (``HardwareGA.state_dict``) and the cycle counter: with
+        the world model (rebuilt by replaying the observations) the whole board."""
+        return {"engine": self.ga.state_dict(), "cycles": self.cycles}
+
+    def load_state(self, d: dict) -> None:
+        from ga.hardware_ga import HardwareGA
+
+        ga = HardwareGA.from_state_dict(d["engine"])
+        if ga.config != self.config:
+            raise ValueError(f"the saved engine has {ga.config!r}, this board {self.config!r}")
+        self.ga, self.cycles = ga, int(d["cycles"])
+
     def learn(self, generations: int, avoid: tuple[int, int] | None = None) -> LearnResult:
         t0 = time.process_time()
         rows, counts, cycles = self.ga.learn(self.model, generations, self.reflex, self.distance_rule, avoid)
@@ -280,7 +293,13 @@ class ReferenceLearningBoard:
                            escaped=self.ga.download_index != self.ga.best_index)
 
 
-LEARNING_BACKENDS = ("reference", "amaranth")
+# backend -> "module:factory" of its learning board (by name, as make_boards does: the backend
+# modules import this one, not the reverse). cocotb's exists only inside the simulator (launcher).
+_LEARNING_FACTORIES = {
+    "amaranth": "cosim.amaranth_learning:AmaranthLearningBoard",
+    "cocotb": "cosim.cocotb_learning:make_cocotb_learning_board",
+}
+LEARNING_BACKENDS = ("reference", *_LEARNING_FACTORIES)
 
 
 def make_learning_board(backend: str, config, seed: int, population, *, reflex: bool = True,
@@ -289,11 +308,10 @@ def make_learning_board(backend: str, config, seed: int, population, *, reflex: 
     with ``seed`` (32 bits), and an empty world model."""
     if backend == "reference":
         return ReferenceLearningBoard(config, seed, population, reflex, distance_rule)
-    if backend == "amaranth":
-        # by name, as make_boards does: the backend module imports this one, not the reverse
+    if backend in _LEARNING_FACTORIES:
         import importlib
 
-        board = importlib.import_module("cosim.amaranth_learning").AmaranthLearningBoard
-        return board(config, seed, population, reflex, distance_rule)
+        module, name = _LEARNING_FACTORIES[backend].split(":")
+        return getattr(importlib.import_module(module), name)(config, seed, population, reflex, distance_rule)
     raise BackendUnavailable(
         f"no learning board for backend {backend!r} yet; --ga hardware runs on {LEARNING_BACKENDS!r}")

@@ -78,15 +78,21 @@ class CocotbSystem:
 
 def make_cocotb_boards(reflex: bool = True, check: bool = True, distance_rule: str = DEFAULT_DISTANCE_RULE):
     """The board pair on the running test's system top (inside the simulator only)."""
+    system = active_system()
+    system.call(system.host.reflex, bool(reflex))
+    log = BoardLog()
+    return (HDLControllerBoard(system, reflex, check, log=log),
+            HDLEvaluatorBoard(system, reflex, check, log=log, distance_rule=distance_rule))
+
+
+def active_system() -> CocotbSystem:
+    """The running test's system (inside the simulator only)."""
     if _active_system is None:
         raise RuntimeError(
             "the cocotb backend runs the experiment inside the simulator: start it with "
             "`python -m cosim.online --backend cocotb` or cosim.cocotb_launch.run_online_cocotb(config, out)"
         )
-    _active_system.call(_active_system.host.reflex, bool(reflex))
-    log = BoardLog()
-    return (HDLControllerBoard(_active_system, reflex, check, log=log),
-            HDLEvaluatorBoard(_active_system, reflex, check, log=log, distance_rule=distance_rule))
+    return _active_system
 
 
 def activate(system: CocotbSystem | None) -> None:

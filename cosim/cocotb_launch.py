@@ -6,9 +6,12 @@ The process that is started (``python -m cosim.online``) only launches the simul
 (:func:`run_online_cocotb`): it writes ``system_top.v`` (``hdl.system_top.SystemTop``: controller
 EHW + evaluator EHW + population streamer), builds it with Icarus or Verilator (``EHW_SIM``)
 through ``cosim.cocotb_run.run_cocotb`` and runs the cocotb test of ``cosim.cocotb_online``,
-which writes ``summary.json``; this process reads it and prints the same table as the other
-backends. On Verilator the toplevel is ``system_top_clocked`` (:func:`clocked_top_verilog`: the
-clock generated in the Verilog, built with ``--timing``), 2x faster than cocotb's GPI clock. ``WAVES=1`` dumps the simulation next to the build.
+which writes ``summary.json`` (with ``--ga hardware`` the top is ``learning_system_top``, the
+engine built for the run's parameters: ``cosim.cocotb_learning``); this process reads it and prints
+the same table as the other backends. On Verilator the system top's toplevel is
+``system_top_clocked`` (:func:`clocked_top_verilog`: the clock generated in the Verilog, built with
+``--timing``), 2x faster than cocotb's GPI clock; the learning top keeps cocotb's clock.
+``WAVES=1`` dumps the simulation next to the build.
 """
 
 from __future__ import annotations
@@ -91,19 +94,33 @@ def run_online_cocotb(config, out: Path | str, *, resume: bool = False, plots: b
     rule = config.distance_rule
     if rule != DEFAULT_DISTANCE_RULE and build_name == TOPLEVEL:
         build_name = f"{TOPLEVEL}_{rule}"  # other Verilog: its own build
-    # one folder per build: runs may overlap
-    source = write_system_verilog(SIM_BUILD / f"{build_name}_verilog", distance_rule=rule, clock_inside=clock_inside)
     options = {"out": str(out), "resume": resume, "plots": plots, "progress": progress}
+    toplevel = TOPLEVEL
+    if config.ga == "hardware":  # the learning engine beside the controller (cosim.cocotb_learning)
+        from cosim import cocotb_learning
+        from cosim.learning_phase import hardware_ga_config
+
+        clock_inside = False  # the learning top has no clocked wrapper: cocotb's GPI clock
+        ga_config = hardware_ga_config(config)
+        toplevel, build_name = cocotb_learning.TOPLEVEL, cocotb_learning.build_name(ga_config, rule)
+        source = cocotb_learning.write_learning_verilog(SIM_BUILD / f"{build_name}_verilog", ga_config, rule)
+    else:  # one folder per build: runs may overlap
+        source = write_system_verilog(SIM_BUILD / f"{build_name}_verilog", distance_rule=rule,
+                                      clock_inside=clock_inside)
+        if clock_inside:
+            toplevel = CLOCKED_TOPLEVEL
     env = {CONFIG_ENV: json.dumps(config.to_dict()), OPTIONS_ENV: json.dumps(options),
            CLOCK_INSIDE_ENV: str(int(clock_inside))}
+    if config.ga == "hardware":
+        env[cocotb_learning.CONFIG_ENV] = json.dumps(ga_config.to_dict())
     if clock_hz is not None:  # else the run in the simulator finds the measured clock itself
         env["EHW_CLOCK_HZ"] = str(clock_hz)
     if sample is not None:  # spot-check mode (cosim.amaranth_backend.HDLEvaluatorBoard)
         env[SAMPLE_ENV] = str(int(sample))
     run_cocotb(
-        sources=[source], toplevel=CLOCKED_TOPLEVEL if clock_inside else TOPLEVEL,
-        test_module="cosim.cocotb_online", test_dir=REPO_ROOT, build_name=build_name,
-        testcase="online_experiment", waves=waves, extra_env=env, simulator=simulator, timing=clock_inside,
+        sources=[source], toplevel=toplevel, test_module="cosim.cocotb_online", test_dir=REPO_ROOT,
+        build_name=build_name, testcase="online_experiment", waves=waves, extra_env=env,
+        simulator=simulator, timing=clock_inside,
     )
     return json.loads(summary_path.read_text())
 

@@ -4,7 +4,8 @@
 configuration and options in environment variables (``EHW_ONLINE_CONFIG``, ``EHW_ONLINE_OPTIONS``,
 JSON). The test starts the clock, resets the top, waits for the evaluator's RAM sweep, and runs
 the lifetime of ``cosim.online`` in a thread (``cocotb.task.bridge``) on the boards of
-``cosim.cocotb_backend``. It writes ``summary.json`` (plus ``board_log.json``: executed motions,
+``cosim.cocotb_backend`` (with ``--ga hardware``: on ``learning_system_top``, whose engine is
+the learning board of ``cosim.cocotb_learning``). It writes ``summary.json`` (plus ``board_log.json``: executed motions,
 downloaded genomes, a digest of every evaluation) into the output folder.
 """
 
@@ -39,12 +40,16 @@ def _experiment(config: dict, options: dict) -> dict:
 
 @cocotb.test()
 async def online_experiment(dut):
-    """The whole on-line experiment on system_top; options from the environment."""
+    """The whole on-line experiment on system_top (or learning_system_top); options from the environment."""
     from cocotb.task import bridge
 
     config = json.loads(os.environ[CONFIG_ENV])
     options = json.loads(os.environ[OPTIONS_ENV])
     system = CocotbSystem(dut)
+    if config.get("ga") == "hardware":  # learning_system_top: the engine's inputs too
+        from cosim.cocotb_learning import zero_learner_inputs
+
+        zero_learner_inputs(dut)
     await system.start()
     activate(system)
     try:

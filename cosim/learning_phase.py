@@ -30,13 +30,27 @@ def hardware_seed(seed: int) -> int:
     return int(np.random.SeedSequence([int(seed), 14]).generate_state(1)[0])
 
 
+def check_learning_backend(config, backend: str) -> None:
+    """Refuse ``--ga hardware`` on a backend without a learning board (a user error)."""
+    from cosim.boards import LEARNING_BACKENDS, BackendUnavailable
+
+    if config.ga == "hardware" and backend not in LEARNING_BACKENDS:
+        raise BackendUnavailable(f"--ga hardware runs on --backend {', '.join(LEARNING_BACKENDS)} (no "
+                                 f"{backend} learning board yet)")
+
+
+def phase_avoid(config, reason: str, state: int, motion: int):
+    """The learn's ``avoid`` of a phase: (state, motion) after a time-out or loop in an obstacle
+    state (the escape), else None."""
+    if config.escape and reason in ("timeout", "loop") and state & OBSTACLE_MASK:
+        return int(state), int(motion)
+    return None
+
+
 def learn_on_chip(run, record: dict, reason: str, state: int, motion: int) -> dict:
     """One learning phase on ``run.evaluator`` (a LearningBoard); returns the phase record."""
     cfg = run.config
-    avoid = None
-    if cfg.escape and reason in ("timeout", "loop") and state & OBSTACLE_MASK:
-        avoid = (int(state), int(motion))
-    result = run.evaluator.learn(cfg.generations_per_phase, avoid)
+    result = run.evaluator.learn(cfg.generations_per_phase, phase_avoid(cfg, reason, state, motion))
     run.generations += cfg.generations_per_phase
     run.genetic_operations += cfg.generations_per_phase * cfg.population
     run.best_rows = result.rows.copy()

@@ -269,7 +269,11 @@ class OnlineRun:
             "genetic_operations": self.genetic_operations, "phases": self.phases,
             "target_log": self.target_log,
             "best_rows": None if self.best_rows is None else hex_from_rows(self.best_rows),
-            "started": self.started, "ga": self.ga.state_dict(), "wall_time_s": self.wall_time_s,
+            "started": self.started, "wall_time_s": self.wall_time_s,
+            # with --ga hardware the host GA only gave the initial population (rebuilt from the
+            # seed): the learning board's engine is the state
+            "ga": None if self.config.ga == "hardware" else self.ga.state_dict(),
+            **({"learning_board": self.evaluator.state_dict()} if self.config.ga == "hardware" else {}),
         }
 
     def save(self, path: Path) -> None:
@@ -279,8 +283,19 @@ class OnlineRun:
         """Continue from ``state_dict`` output: replay the motions through world and evaluator."""
         if self.interactions:
             raise RuntimeError("load_state needs a fresh OnlineRun")
+        hardware = self.config.ga == "hardware"
+        # A learning board that cannot load an engine state (the HDL engine has no port for its
+        # generators and scores) gets it back by replaying the learns where they happened.
+        replay = {p["interactions"]: p for p in d["phases"]} if hardware and not hasattr(
+            self.evaluator, "load_state") else {}
         for motion in bytes.fromhex(d["motions"]):
             self.step(motion, record=False)
+            phase = replay.get(self.interactions)
+            if phase is not None:
+                from cosim.learning_phase import phase_avoid
+
+                self.evaluator.learn(self.config.generations_per_phase,
+                                     phase_avoid(self.config, phase["reason"], phase["state"], phase["motion"]))
         if self.interactions != d["interactions"] or self.targets != d["targets"]:
             raise CheckpointError(
                 f"replaying the checkpoint's motions gave {self.interactions} interactions and "
@@ -292,10 +307,20 @@ class OnlineRun:
         self.target_log = list(d["target_log"])
         self.started = bool(d["started"])
         self.wall_time_s = float(d["wall_time_s"])
-        self.ga = GeneticAlgorithm.from_state_dict(d["ga"], self.rng)
+        if d["ga"] is not None:
+            self.ga = GeneticAlgorithm.from_state_dict(d["ga"], self.rng)
+        if hardware:
+            self._restore_learning_board(d["learning_board"], replayed=bool(replay))
         if d["best_rows"] is not None:
             self.best_rows = rows_from_hex(d["best_rows"])
             self.controller.load(self.best_rows)
+
+    def _restore_learning_board(self, saved: dict, replayed: bool) -> None:
+        if not replayed:
+            self.evaluator.load_state(saved)
+        elif getattr(self.evaluator, "state_dict", None) is not None and self.evaluator.state_dict() != saved:
+            raise CheckpointError("replaying the checkpoint's learning phases on the learning board "
+                                  "did not give the engine state it saved")
 
     # -- results -------------------------------------------------------------------------------
 
@@ -318,9 +343,6 @@ def make_run(config: OnlineConfig, backend: str = "reference", out: Path | None 
         from cosim.boards import make_learning_board
         from cosim.learning_phase import hardware_ga_config, hardware_seed
 
-        if resume:
-            raise CheckpointError("--resume is not available with --ga hardware (the engine's state "
-                                  "is not in the checkpoint)")
         run.evaluator = make_learning_board(backend, hardware_ga_config(config), hardware_seed(config.seed),
                                             run.ga.ask(), reflex=config.reflex,
                                             distance_rule=config.distance_rule)

@@ -18,6 +18,7 @@ from pathlib import Path
 
 from cosim.boards import BACKENDS, BackendUnavailable, launcher
 from cosim.checkpoint import CheckpointError
+from cosim.learning_phase import check_learning_backend
 from cosim.online import make_run
 from cosim.online_config import OnlineConfig
 from ga.motions import DISTANCE_RULES
@@ -108,9 +109,7 @@ def run(config: OnlineConfig, args) -> int:
     from cosim.online_report import summary_table, write_results
 
     launch = launcher(args.backend)
-    if launch is not None and config.ga == "hardware":
-        raise BackendUnavailable(f"--ga hardware runs on --backend reference or amaranth (no "
-                                 f"{args.backend} learning board yet)")
+    check_learning_backend(config, args.backend)
     if launch is not None:  # the loop must run inside the simulator (cocotb): the launcher starts it
         return launch(config, args)
     run = make_run(config, args.backend, args.out, resume=args.resume, progress=not args.no_progress)

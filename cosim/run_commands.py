@@ -14,6 +14,7 @@ from pathlib import Path
 from cosim.cli_options import (PROG, RESULTS, _add_common, _add_hdl_options, _fill_help, _option_keys,
                                hdl_environment, resolve_hdl_settings, write_config)
 from cosim.errors import UserError
+from cosim.learning_phase import check_learning_backend
 from cosim.runs import atomic_write_json, open_run
 
 # -- sim: the on-line experiment ------------------------------------------------------------------
@@ -155,6 +156,7 @@ def _record_session(folder: Path, backend: str, settings: dict, resumed: bool) -
 def cmd_sim(args, extras: dict, sub=None) -> int:
     settings = resolve_hdl_settings(args)
     config = online_config(args, extras)
+    check_learning_backend(config, args.backend)
     progress = not (args.quiet or getattr(args, "no_progress", False))
     plots = not getattr(args, "no_plots", False)
     with open_run(args.out, RESULTS / "model_based", config.seed, resume=args.resume,

@@ -159,7 +159,10 @@ def evaluate_tables(tables, model: WorldModel, distance_rule: str = DEFAULT_DIST
     entry = np.take(packed, flat)
     crashes = ((entry >> 9) & 1).sum(axis=1, dtype=np.int64)
     distance = (entry >> 10).sum(axis=1, dtype=np.int64)
-    succ_local = entry & 0x1FF  # (P, N): position in S of the successor, or n (the sink)
+    # (P, N): position in S of the successor, or n (the sink). The node arrays below are int32
+    # when P N fits (always, for populations below 8 million): half the gathers' memory traffic.
+    idx = np.int32 if pop * (n + 1) < 2**31 else np.intp
+    succ_local = (entry & 0x1FF).astype(idx)
 
     # Functional graph of the continuing states of every individual at once: node ids 0..C-1 for
     # the C continuing (individual, state) pairs, C for one shared sink. A continuing state whose
@@ -169,13 +172,13 @@ def evaluate_tables(tables, model: WorldModel, distance_rule: str = DEFAULT_DIST
     count = int(continuing.sum())
     if count == 0:
         return EvalResult(crashes, np.zeros(pop, dtype=np.int64), distance)
-    node_of = np.cumsum(continuing) - 1  # flat position p N + i -> node id (where continuing)
-    owner = np.repeat(np.arange(pop, dtype=np.intp), n)[continuing]  # individual of each node
-    target = owner * n + succ_flat[continuing]  # flat position of each node's successor
-    succ = np.empty(count + 1, dtype=np.intp)
+    node_of = np.cumsum(continuing, dtype=idx) - 1  # flat position p N + i -> node id (where continuing)
+    owner = np.repeat(np.arange(pop, dtype=idx), n)[continuing]  # individual of each node
+    target = owner * idx(n) + succ_flat[continuing]  # flat position of each node's successor
+    succ = np.empty(count + 1, dtype=idx)
     succ[:count] = np.where(np.take(continuing, target), np.take(node_of, target), count)
     succ[count] = count
-    node = np.arange(count + 1, dtype=np.intp)
+    node = np.arange(count + 1, dtype=idx)
     low = node.copy()  # the smallest node id on the path window (a cycle stays in one individual)
     rounds = int(np.ceil(np.log2(n + 1)))
     for _ in range(rounds):  # window doubles: 1, 2, 4, ... >= N + 1 steps

@@ -74,8 +74,7 @@ import numpy as np
 from ga.evaluator import EvalResult, evaluate_population
 from ga.genome import LITERAL_MASK, N_ROWS, OUTPUT_MASK, OUTPUT_SHIFT, ROW_DTYPE, validate_rows
 from ga.motions import MAX_MOTION_DISTANCE_MM, OBSTACLE_MASK
-from ga.operators import DEFAULT_LITERAL_P, CONTRADICTION, DONT_CARE, NEGATIVE, POSITIVE
-from ga.truth_table import truth_tables
+from ga.operators import DEFAULT_LITERAL_P, CONTRADICTION, DONT_CARE, NEGATIVE, POSITIVE, row_fires, row_outputs
 from ga.world_model import WorldModel
 
 # -- the random source -----------------------------------------------------------------------------
@@ -96,6 +95,7 @@ TO_DC_SHIFT = 8  # ROW0 bits 8..15
 CHOICE_MASK = 0xFF  # ROW1, ROW2, ROW3 bits 0..7
 FRESH_POLARITY_SHIFT = 8  # ROW3 bits 8..15: polarity of fresh literal i (0: x_i)
 SCORE_BITS = 17
+STATE_FORMAT = 1  # of HardwareGA.state_dict
 
 
 def seed_salt(lane: int, generator: int) -> int:
@@ -158,25 +158,36 @@ def _power_tables(count: int = 24) -> list[np.ndarray]:
 
 
 _POWERS = _power_tables()
+_BLOCK_LOG2 = 4  # xorshift_stream: the recurrence runs 16 steps from every 16th state
 
 
 def xorshift_stream(states, n: int) -> tuple[np.ndarray, np.ndarray]:
     """The next ``n`` draws of every generator in ``states`` (any shape, uint32): an array of
     shape states.shape + (n,), and the states after them. No Python loop over the draws: the
-    block of draws k..2k-1 is the step map to the power k applied to draws 0..k-1."""
+    states after 0, 16, 32, ... steps come from doubling on the linear step map (the block of
+    jumps k..2k-1 is the map to the power 16 k applied to jumps 0..k-1), then 16 steps of the
+    recurrence run from all of them at once."""
     states = np.asarray(states, dtype=np.uint32)
     if n <= 0:
         return np.zeros(states.shape + (0,), dtype=np.uint32), states.copy()
     if n > 1 << len(_POWERS):
         raise ValueError(f"at most {1 << len(_POWERS)} draws at once, asked {n!r}")
-    out = np.empty(states.shape + (n,), dtype=np.uint32)
-    out[..., 0] = _step_words(states)
-    filled, k = 1, 0
-    while filled < n:
-        take = min(filled, n - filled)
-        out[..., filled:filled + take] = _apply(_POWERS[k], out[..., :take])
+    block = 1 << _BLOCK_LOG2
+    m = -(-n // block)
+    starts = np.empty(states.shape + (m,), dtype=np.uint32)
+    starts[..., 0] = states
+    filled, k = 1, _BLOCK_LOG2
+    while filled < m:
+        take = min(filled, m - filled)
+        starts[..., filled:filled + take] = _apply(_POWERS[k], starts[..., :take])
         filled += take
         k += 1
+    out = np.empty(states.shape + (m, block), dtype=np.uint32)
+    x = starts
+    for i in range(block):
+        x = _step_words(x)
+        out[..., i] = x
+    out = out.reshape(states.shape + (m * block,))[..., :n]
     return out, out[..., -1].copy()
 
 
@@ -303,6 +314,22 @@ def learn_cycles(n_states: int, config: HardwareGAConfig, generations: int) -> i
 
 def _mutate_rows(words, r0, r1, r2, r3, r4, r5, config: HardwareGAConfig):
     """The four row mutations of the module docstring on row words (any shape, uint32)."""
+    u32, f16 = np.uint32, np.uint32(FIELD16_SHIFT)
+    # Most rows have no event (about 6 % have one at the default rates): the datapath below runs
+    # on those that do; a row without an event comes out unchanged.
+    touched = np.flatnonzero(((r0 >> f16) < config.literal_threshold)
+                             | ((r1 >> f16) < config.output_threshold)
+                             | ((r2 >> f16) < config.switch_threshold)
+                             | ((r3 >> f16) < config.replace_threshold))
+    out = np.asarray(words).astype(ROW_DTYPE).ravel()
+    if touched.size:
+        out[touched] = _mutate_datapath(*(np.asarray(v).ravel()[touched] for v in (words, r0, r1, r2, r3, r4, r5)),
+                                        config)
+    return out.reshape(np.shape(words))
+
+
+def _mutate_datapath(words, r0, r1, r2, r3, r4, r5, config: HardwareGAConfig):
+    """The row mutation datapath on every row given (what each lane computes on every row)."""
     w = words.astype(np.uint32, copy=True)
     u32 = np.uint32
     # 1. literal
@@ -405,7 +432,8 @@ class HardwareGA:
         self.escape_index = None
         if avoid is not None:
             state, motion = avoid
-            eligible = truth_tables(children, reflex=False)[:, state] != motion
+            motions = np.bitwise_or.reduce(np.where(row_fires(children, state), row_outputs(children), 0), axis=-1)
+            eligible = motions != motion  # the array's motion in the state (truth_tables, reflex=False)
             if eligible.any():
                 self.escape_index = int(np.flatnonzero(eligible)[np.argmax(self.scores[eligible])])
         self.passes += 1
@@ -420,12 +448,45 @@ class HardwareGA:
             raise ValueError(f"generations must be a positive integer, got {generations!r}")
         if avoid is not None and not (int(avoid[0]) & OBSTACLE_MASK):
             raise ValueError(f"the escape needs a state with an obstacle bit, got {avoid!r}")
-        for _ in range(generations):
-            self.run_pass(model, reflex, distance_rule, avoid)
+        for g in range(generations):  # only the last pass's escape child is read
+            self.run_pass(model, reflex, distance_rule, avoid if g == generations - 1 else None)
         self.cycles += 1
         index = self.download_index
         return (self.population[index].copy(), self.counts.row(index),
                 learn_cycles(model.n_states, self.config, generations))
+
+    def state_dict(self) -> dict:
+        """Everything a later pass depends on, as JSON values (the engine between two learns):
+        population, scores and counts of the last pass, generator states, counters."""
+        counts = self.counts
+        return {
+            "format": STATE_FORMAT, "config": self.config.to_dict(), "seed": self.seed,
+            "population": self.population.astype("<u4").tobytes().hex(),
+            "scores": None if self.scores is None else self.scores.tolist(),
+            "counts": None if counts is None else [counts.crashes.tolist(), counts.loops.tolist(),
+                                                   counts.distance.tolist()],
+            "generators": self.generators.tolist(), "passes": self.passes, "cycles": self.cycles,
+            "escape_index": self.escape_index,
+        }
+
+    @classmethod
+    def from_state_dict(cls, d: dict) -> "HardwareGA":
+        """The engine of ``state_dict`` output: its next pass is the saved engine's next pass."""
+        if d.get("format") != STATE_FORMAT:
+            raise ValueError(f"hardware GA state format {d.get('format')!r} is not {STATE_FORMAT}")
+        config = HardwareGAConfig(**d["config"])
+        population = np.frombuffer(bytes.fromhex(d["population"]), dtype="<u4").reshape(-1, N_ROWS)
+        ga = cls(config, d["seed"], population.astype(ROW_DTYPE))
+        generators = np.asarray(d["generators"], dtype=np.uint32)
+        if generators.shape != ga.generators.shape:
+            raise ValueError(f"hardware GA state has generators of shape {generators.shape!r}, "
+                             f"expected {ga.generators.shape!r}")
+        ga.generators = generators
+        if d["scores"] is not None:
+            ga.scores = np.asarray(d["scores"], dtype=np.int64)
+            ga.counts = EvalResult(*(np.asarray(c, dtype=np.int64) for c in d["counts"]))
+        ga.passes, ga.cycles, ga.escape_index = int(d["passes"]), int(d["cycles"]), d["escape_index"]
+        return ga
 
     @property
     def download_index(self) -> int:
