@@ -170,7 +170,7 @@ def make_tasks(methods, seeds, *, arena: str, out: str, shapings=SHAPINGS, onlin
             from peers.deep import tuned_hyper
 
             rows = [(f"{m}/{sh}", "deep", {"arena": arena, "shaping": sh, "max_interactions": cap,
-                                           "hyper": tuned_hyper(m)}) for sh in shapings]
+                                           "hyper": tuned_hyper(m, sh)}) for sh in shapings]
         else:
             raise ValueError(f"unknown method {m!r}; choose from {', '.join(METHODS)}")
         for row, kind, config in rows:
