@@ -379,7 +379,7 @@ def main(argv=None) -> int:
                             + (f"**seeds {used} were used for tuning**." if used else
                                "none of the reported seeds was.") +
                             " DQN and PPO: stable-baselines3's defaults with the settings in peers/deep.py, their "
-                            "learning rate and exploration fraction / rollout length chosen on the same seeds "
+                            "learning rate (and DQN's exploration fraction) chosen on the same seeds "
                             "(experiments/tune_deep.py)" + ("" if DEEP_TUNED else " -- not yet run") + ".")
     if args.blind_bit is not None:
         rows = []

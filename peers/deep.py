@@ -23,7 +23,7 @@ the progress term, computed from the ball distance the env reports in ``info``.
 Hyper-parameters: stable-baselines3's defaults except those in ``HYPER`` (scaled to a lifetime of
 at most 100,000 steps: DQN's exploration schedule and target updates run on the default's 1M-step
 scale otherwise; set by hand), and over those the values ``TUNED`` holds per (learner, reward):
-the learning rate and DQN's exploration fraction / PPO's rollout length, chosen by
+the learning rate and DQN's exploration fraction, chosen by
 experiments/tune_deep.py on the tuning seeds (``peers.tabular.TUNING_SEEDS``, 1001-1003) only.
 """
 
@@ -49,6 +49,7 @@ HYPER = {
 # (learner, reward) -> the grid values experiments/tune_deep.py chose on the tuning seeds (median
 # interactions to 64 there: build/experiments/tuning/deep.json); HYPER alone otherwise.
 TUNED: dict[tuple[str, str], dict] = {
+    ("dqn", "shaped"): {"learning_rate": 0.001, "exploration_fraction": 0.02},  # median 7,888
 }
 
 
