@@ -50,6 +50,7 @@ HYPER = {
 # interactions to 64 there: build/experiments/tuning/deep.json); HYPER alone otherwise.
 TUNED: dict[tuple[str, str], dict] = {
     ("dqn", "shaped"): {"learning_rate": 0.001, "exploration_fraction": 0.02},  # median 7,888
+    ("ppo", "shaped"): {"learning_rate": 0.001},  # median 13,596
 }
 
 
