@@ -18,7 +18,8 @@ Methods (``--methods``, default: all but the optional deep-RL ones):
   ball, a distance the 8-bit state does not contain). Hyper-parameters: ``peers.tabular.TUNED``,
   chosen by experiments/tune_tabular.py on its tuning seeds.
 * ``dqn``, ``ppo`` (optional, ``pip install .[rl]``): stable-baselines3 on the Gymnasium env
-  (``peers.deep``), under the same protocol, every environment step counted.
+  (``peers.deep``), under the same protocol, every environment step counted. Hyper-parameters:
+  ``peers.deep.tuned_hyper``, chosen by experiments/tune_deep.py on the same tuning seeds.
 
 The lifetimes run through one executor (``cosim.sweep``): a local process pool of ``--jobs``
 workers, or a Dask cluster (``--cluster local`` starts one on the loopback interface,
@@ -177,7 +178,7 @@ def make_tasks(methods, seeds, *, arena: str, out: str, shapings=SHAPINGS, onlin
             from peers.deep import tuned_hyper
 
             rows = [(f"{m}/{sh}", "deep", {"arena": arena, "shaping": sh, "max_interactions": cap,
-                                           "hyper": tuned_hyper(m)}) for sh in shapings]
+                                           "hyper": tuned_hyper(m, sh)}) for sh in shapings]
         else:
             raise ValueError(f"unknown method {m!r}; choose from {', '.join(METHODS)}")
         for row, kind, config in rows:
@@ -320,6 +321,7 @@ def _compare(args, folder: Path) -> dict:
     report["online_distance_rule"] = args.distance
     report["online_options"] = online
     from peers.tabular import TUNED, TUNING_SEEDS
+    from peers.deep import TUNED as DEEP_TUNED
 
     if any(r.partition("/")[0] in TABULAR + DEEP for r in results):
         used = sorted(set(seeds) & set(TUNING_SEEDS))
@@ -327,8 +329,9 @@ def _compare(args, folder: Path) -> dict:
                             f"(experiments/tune_tabular.py){'' if TUNED else ' -- not yet run: defaults'}; "
                             + (f"**seeds {used} were used for tuning**." if used else
                                "none of the reported seeds was.") +
-                            " DQN and PPO run stable-baselines3's defaults with the settings in peers/deep.py "
-                            "(not tuned on any seed).")
+                            " DQN and PPO: stable-baselines3's defaults with the settings in peers/deep.py, their "
+                            "learning rate (and DQN's exploration fraction) chosen on the same seeds "
+                            "(experiments/tune_deep.py)" + ("" if DEEP_TUNED else " -- not yet run") + ".")
     if args.blind_bit is not None:
         rows = []
         for s in seeds:

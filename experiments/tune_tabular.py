@@ -50,6 +50,42 @@ def lifetime(task: dict) -> dict:
     return res
 
 
+def choose(tasks: list[dict], results: list[dict], field: str) -> tuple[list[dict], dict]:
+    """Group the lifetimes by (row, grid point: ``task["config"][field]``); per row, the point of
+    the lowest median interactions to 64 targets (a capped lifetime counts as its cap; ties: the
+    lower mean). Returns every point's figures and {row: the chosen point's figures}. The
+    deep-RL tuning (experiments/tune_deep.py) chooses the same way."""
+    points: dict = {}
+    for task, res in zip(tasks, results):
+        key = (task["method"], json.dumps(task["config"][field], sort_keys=True))
+        points.setdefault(key, []).append(res)
+    table, chosen = [], {}
+    for (row, point), runs in points.items():
+        inter = [r["interactions"] for r in runs]
+        entry = {"row": row, field: json.loads(point), "seeds": [r["seed"] for r in runs],
+                 "interactions": inter, "median": float(np.median(inter)), "mean": float(np.mean(inter)),
+                 "reached_64": sum(r["targets_reached"] >= 64 for r in runs),
+                 "crashes": [r.get("crashes") for r in runs],
+                 "cpu_s": round(sum(r["cpu_s"] for r in runs), 1)}
+        table.append(entry)
+        best = chosen.get(row)
+        if best is None or (entry["median"], entry["mean"]) < (best["median"], best["mean"]):
+            chosen[row] = entry
+    return table, chosen
+
+
+def progress_printer(n_tasks: int, every: int = 20):
+    """``on_result`` of ``run_sweep``: a line every ``every`` lifetimes, with the wall time."""
+    t0, done = time.perf_counter(), [0]
+
+    def progress(task, result, cached):
+        done[0] += 1
+        if done[0] % every == 0 or done[0] == n_tasks:
+            print(f"{done[0]}/{n_tasks} lifetimes ({time.perf_counter() - t0:.0f} s)", flush=True)
+
+    return progress
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--jobs", type=int, default=2)
@@ -70,30 +106,9 @@ def main(argv=None) -> int:
                            "config": {"arena": "default", "shaping": shaping, "max_interactions": MAX_INTERACTIONS,
                                       "learner": dataclasses.asdict(config)}} for s in TUNING_SEEDS]
     t0 = time.perf_counter()
-    done = [0]
-
-    def progress(task, result, cached):
-        done[0] += 1
-        if done[0] % 20 == 0 or done[0] == len(tasks):
-            print(f"{done[0]}/{len(tasks)} lifetimes ({time.perf_counter() - t0:.0f} s)", flush=True)
-
     with executor(args.jobs, args.cluster) as pool:
-        results = run_sweep(lifetime, tasks, pool, Cache(args.out / "cache"), on_result=progress)
-    points: dict = {}
-    for task, res in zip(tasks, results):
-        key = (task["method"], json.dumps(task["config"]["learner"], sort_keys=True))
-        points.setdefault(key, []).append(res)
-    table, chosen = [], {}
-    for (row, learner), runs in points.items():
-        inter = [r["interactions"] for r in runs]
-        entry = {"row": row, "learner": json.loads(learner), "seeds": [r["seed"] for r in runs],
-                 "interactions": inter, "median": float(np.median(inter)), "mean": float(np.mean(inter)),
-                 "reached_64": sum(r["targets_reached"] >= 64 for r in runs),
-                 "cpu_s": round(sum(r["cpu_s"] for r in runs), 1)}
-        table.append(entry)
-        best = chosen.get(row)
-        if best is None or (entry["median"], entry["mean"]) < (best["median"], best["mean"]):
-            chosen[row] = entry
+        results = run_sweep(lifetime, tasks, pool, Cache(args.out / "cache"), on_result=progress_printer(len(tasks)))
+    table, chosen = choose(tasks, results, "learner")
     args.out.mkdir(parents=True, exist_ok=True)
     report = {"tuning_seeds": list(TUNING_SEEDS), "skipped": args.skip, "grid": {"alpha": ALPHAS, "epsilon": EPSILONS, "gamma": GAMMAS,
                                                            "planning_steps": PLANNING},

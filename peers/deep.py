@@ -22,7 +22,9 @@ the progress term, computed from the ball distance the env reports in ``info``.
 
 Hyper-parameters: stable-baselines3's defaults except those in ``HYPER`` (scaled to a lifetime of
 at most 100,000 steps: DQN's exploration schedule and target updates run on the default's 1M-step
-scale otherwise). They were set once, by hand, and not tuned on any seed.
+scale otherwise; set by hand), and over those the values ``TUNED`` holds per (learner, reward):
+the learning rate and DQN's exploration fraction, chosen by
+experiments/tune_deep.py on the tuning seeds (``peers.tabular.TUNING_SEEDS``, 1001-1003) only.
 """
 
 from __future__ import annotations
@@ -44,11 +46,20 @@ HYPER = {
     "ppo": {"n_steps": 512, "batch_size": 64, "n_epochs": 4, "gamma": 0.95, "ent_coef": 0.01},
 }
 
+# (learner, reward) -> the grid values experiments/tune_deep.py chose on the tuning seeds (median
+# interactions to 64 there: build/experiments/tuning/deep.json); HYPER alone otherwise.
+TUNED: dict[tuple[str, str], dict] = {
+    ("dqn", "shaped"): {"learning_rate": 0.001, "exploration_fraction": 0.02},  # median 7,888
+    ("ppo", "shaped"): {"learning_rate": 0.001},  # median 13,596
+}
 
-def tuned_hyper(method: str) -> dict:
+
+def tuned_hyper(method: str, shaping: str = "shaped") -> dict:
     if method not in HYPER:
         raise ValueError(f"deep learner must be one of {sorted(HYPER)}, got {method!r}")
-    return dict(HYPER[method])
+    if shaping not in SHAPINGS:
+        raise ValueError(f"shaping must be one of {SHAPINGS}, got {shaping!r}")
+    return {**HYPER[method], **TUNED.get((method, shaping), {})}
 
 
 class Reflex(gym.ActionWrapper):
@@ -138,7 +149,7 @@ def run_deep_lifetime(method: str, seed: int, *, shaping: str = "shaped", hyper:
 
     cpu0 = time.process_time()
     torch.set_num_threads(1)  # one core per lifetime, as every other method
-    hyper = tuned_hyper(method) if hyper is None else dict(hyper)
+    hyper = tuned_hyper(method, shaping) if hyper is None else dict(hyper)
     _, rng = seeds(seed)
     env = lifetime_env(seed, shaping, arena, max_interactions, n_targets)
 

@@ -93,3 +93,23 @@ def test_online_where_accounts_for_every_interaction(capsys):
     # 1 -7-> 64 -2-> 0 -0-> 1: the loop is its obstacle pair; the free-space pairs are the reflex's
     assert where.last_cycle([(0, 0), (1, 7), (64, 2), (0, 0)], 1) == ((1, 7),)
     assert where.last_cycle([(0, 0), (64, 2)], 64) == ()
+
+
+def test_tuning_chooses_the_lowest_median_and_the_deep_grid_is_over_hyper():
+    tune = _script("tune_tabular")
+    deep = _script("tune_deep")  # importable without the optional extra
+    from peers.deep import HYPER, TUNED, tuned_hyper
+
+    tasks, results = [], []
+    for point, inter in (({"lr": 1}, [10, 50, 60]), ({"lr": 2}, [30, 31, 32]), ({"lr": 3}, [30, 31, 90])):
+        for seed, n in zip((1001, 1002, 1003), inter):
+            tasks.append({"method": "dqn/shaped", "seed": seed, "config": {"hyper": point}})
+            results.append({"seed": seed, "interactions": n, "targets_reached": 64, "crashes": 0, "cpu_s": 1.0})
+    table, chosen = tune.choose(tasks, results, "hyper")
+    assert [e["median"] for e in table] == [50, 31, 31]
+    assert chosen["dqn/shaped"]["hyper"] == {"lr": 2}  # median 31 beats 50; tie 31-31: the lower mean
+    for method in ("dqn", "ppo"):
+        points = deep.grid(method)
+        assert len(points) == {"dqn": 4, "ppo": 2}[method] and all(p.keys() == HYPER[method].keys() | deep.GRID[method].keys() for p in points)
+        for shaping in ("shaped", "unshaped"):
+            assert tuned_hyper(method, shaping) == {**HYPER[method], **TUNED.get((method, shaping), {})}
