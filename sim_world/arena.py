@@ -35,6 +35,16 @@ from pathlib import Path
 import numpy as np
 
 from cosim.errors import UserError
+from sim_world.geometry import (
+    Point,
+    edges,
+    inside_convex,
+    is_convex,
+    is_simple,
+    point_segment_distance,
+    polygon_area2,
+    segments_intersect,
+)
 
 ARENA_DIR = Path(__file__).resolve().parent / "arenas"
 DEFAULT_ARENA = "default"
@@ -58,81 +68,6 @@ class ArenaError(UserError, ValueError):
     """An arena file that cannot be used; the message names the offending item."""
 
 
-# ---------------------------------------------------------------------------------------------
-# Plane geometry for validation (plain Python: arenas are small and loaded once).
-
-Point = tuple[float, float]
-
-
-def _point_segment_distance(p: Point, a: Point, b: Point) -> float:
-    ax, ay = a
-    dx, dy = b[0] - ax, b[1] - ay
-    length2 = dx * dx + dy * dy
-    t = 0.0 if length2 == 0 else max(0.0, min(1.0, ((p[0] - ax) * dx + (p[1] - ay) * dy) / length2))
-    return math.hypot(p[0] - ax - t * dx, p[1] - ay - t * dy)
-
-
-def _segments_intersect(a: Point, b: Point, c: Point, d: Point) -> bool:
-    def orient(p: Point, q: Point, r: Point) -> float:
-        return (q[0] - p[0]) * (r[1] - p[1]) - (q[1] - p[1]) * (r[0] - p[0])
-
-    o1, o2, o3, o4 = orient(a, b, c), orient(a, b, d), orient(c, d, a), orient(c, d, b)
-    return o1 * o2 < 0 and o3 * o4 < 0
-
-
-def _edges(vertices: list[Point]):
-    return zip(vertices, vertices[1:] + vertices[:1])
-
-
-def _polygon_area2(vertices: list[Point]) -> float:
-    """Twice the signed area (positive when counter-clockwise)."""
-    return sum(a[0] * b[1] - b[0] * a[1] for a, b in _edges(vertices))
-
-
-def _is_simple(vertices: list[Point]) -> bool:
-    """No repeated vertex and no two non-adjacent edges that cross or touch."""
-    n = len(vertices)
-    if len(set(vertices)) < n:
-        return False
-    edges = list(_edges(vertices))
-    for i in range(n):
-        for j in range(i + 2, n):
-            if i == 0 and j == n - 1:
-                continue  # adjacent through the closing edge
-            (a, b), (c, d) = edges[i], edges[j]
-            if _segments_intersect(a, b, c, d) or min(
-                    _point_segment_distance(a, c, d), _point_segment_distance(b, c, d),
-                    _point_segment_distance(c, a, b), _point_segment_distance(d, a, b)) < 1e-9:
-                return False
-    return True
-
-
-def _is_convex(vertices: list[Point]) -> bool:
-    n = len(vertices)
-    signs = set()
-    for i in range(n):
-        a, b, c = vertices[i], vertices[(i + 1) % n], vertices[(i + 2) % n]
-        cross = (b[0] - a[0]) * (c[1] - b[1]) - (b[1] - a[1]) * (c[0] - b[0])
-        if abs(cross) > 1e-9:
-            signs.add(cross > 0)
-    if len(signs) != 1:
-        return False
-    # Turning one way at every vertex is not enough: a pentagram does so too, going round twice.
-    turning = 0.0
-    for i in range(n):
-        a, b, c = vertices[i], vertices[(i + 1) % n], vertices[(i + 2) % n]
-        turning += math.atan2((b[0] - a[0]) * (c[1] - b[1]) - (b[1] - a[1]) * (c[0] - b[0]),
-                              (b[0] - a[0]) * (c[0] - b[0]) + (b[1] - a[1]) * (c[1] - b[1]))
-    return abs(abs(turning) - 2 * math.pi) < 1e-6
-
-
-def _inside_convex(p: Point, vertices: list[Point]) -> bool:
-    """True when p is strictly inside the counter-clockwise convex polygon."""
-    for a, b in _edges(vertices):
-        if (b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0]) <= 0:
-            return False
-    return True
-
 
 @dataclass(frozen=True)
 class Obstacle:
@@ -152,9 +87,9 @@ class Obstacle:
         if self.is_circle:
             return max(0.0, math.dist(p, self.centre) - self.radius)
         verts = list(self.vertices)
-        if _inside_convex(p, verts):
+        if inside_convex(p, verts):
             return 0.0
-        return min(_point_segment_distance(p, a, b) for a, b in _edges(verts))
+        return min(point_segment_distance(p, a, b) for a, b in edges(verts))
 
     def distance_to(self, other: "Obstacle") -> float:
         """Gap between two convex obstacles (0 when they touch or overlap)."""
@@ -165,15 +100,15 @@ class Obstacle:
         if other.is_circle:
             return max(0.0, self.distance_to_point(other.centre) - other.radius)
         a, b = list(self.vertices), list(other.vertices)
-        if any(_inside_convex(p, b) for p in a) or any(_inside_convex(p, a) for p in b):
+        if any(inside_convex(p, b) for p in a) or any(inside_convex(p, a) for p in b):
             return 0.0
-        for p, q in _edges(a):
-            for r, s in _edges(b):
-                if _segments_intersect(p, q, r, s):
+        for p, q in edges(a):
+            for r, s in edges(b):
+                if segments_intersect(p, q, r, s):
                     return 0.0
         return min(
-            min(_point_segment_distance(p, r, s) for p in a for r, s in _edges(b)),
-            min(_point_segment_distance(p, r, s) for p in b for r, s in _edges(a)),
+            min(point_segment_distance(p, r, s) for p in a for r, s in edges(b)),
+            min(point_segment_distance(p, r, s) for p in b for r, s in edges(a)),
         )
 
     def bounds(self) -> tuple[float, float, float, float]:
@@ -291,14 +226,14 @@ def _obstacle(item, index: int) -> Obstacle:
         if not isinstance(raw, list) or len(raw) < 3:
             raise ArenaError(f"{label} polygon needs at least 3 vertices, got {raw!r}")
         verts = [_point(v, f"{label} vertex {i}") for i, v in enumerate(raw)]
-        if not _is_simple(verts):
+        if not is_simple(verts):
             raise ArenaError(f"{label} polygon is not simple (its edges cross, or a vertex repeats): {raw!r}")
-        area2 = _polygon_area2(verts)
+        area2 = polygon_area2(verts)
         if abs(area2) < 1e-6:
             raise ArenaError(f"{label} polygon has no area: {raw!r}")
         if area2 < 0:
             verts.reverse()  # hold every polygon counter-clockwise
-        if not _is_convex(verts):
+        if not is_convex(verts):
             raise ArenaError(f"{label} polygon is not convex (no horseshoes, SPEC section 5): {raw!r}")
         return Obstacle(name=name, vertices=tuple(verts))
     raise ArenaError(f"{label} needs 'polygon' or 'circle', got keys {sorted(item)!r}")
@@ -418,7 +353,7 @@ def clearance_grid(arena: Arena, cell: float = REACH_CELL_MM) -> tuple[np.ndarra
         else:
             d = np.full(gx.shape, np.inf)
             inside = np.ones(gx.shape, bool)
-            for (ax, ay), (bx, by) in _edges(list(ob.vertices)):
+            for (ax, ay), (bx, by) in edges(list(ob.vertices)):
                 dx, dy = bx - ax, by - ay
                 t = np.clip(((gx - ax) * dx + (gy - ay) * dy) / (dx * dx + dy * dy), 0.0, 1.0)
                 d = np.minimum(d, np.hypot(gx - ax - t * dx, gy - ay - t * dy))

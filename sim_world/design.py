@@ -24,10 +24,10 @@ from sim_world.arena import (
     ROBOT_RADIUS_MM,
     Arena,
     Obstacle,
-    _point_segment_distance,
     arena_from_dict,
     save_arena,
 )
+from sim_world.geometry import point_segment_distance
 
 SIZE_MM = 4000.0
 BALL = (2000.0, 2000.0)
@@ -83,7 +83,7 @@ def _blocked(arena: Arena, p) -> bool:
     """True when the straight line from p to the ball passes an obstacle inflated by the robot."""
     for ob in arena.obstacles:
         if ob.is_circle:
-            d = _point_segment_distance(ob.centre, p, arena.ball) - ob.radius
+            d = point_segment_distance(ob.centre, p, arena.ball) - ob.radius
         else:
             # sample the line: obstacles are small and this runs once
             d = min(
