@@ -4,10 +4,14 @@
     make sim BACKEND=serial PORT=/dev/ttyUSB1                 one ULX3S (ehw-system)
     make sim BACKEND=serial PORT=/dev/ttyUSB1 PORT2=/dev/ttyUSB3   two iCEBreakers (controller, evaluator)
 
-(``EHW_PORT``, ``EHW_PORT2``, ``EHW_BAUD`` in the environment; ``ehw sim --backend serial``.) The same board classes serve the ``uart`` backend (``cosim.uart_backend``),
-where the stream is the simulated serial line of the board top in Verilator.
+(``ehw sim --backend serial --port ... [--port2 ...] [--baud ...]``, or ``EHW_PORT``,
+``EHW_PORT2``, ``EHW_BAUD`` in the environment; with ``--ga hardware`` one ``ulx3s-learner``
+board: ``cosim.link_learning``.) The same board classes serve the ``uart`` backend
+(``cosim.uart_backend``), where the stream is the simulated serial line of the board top in Verilator.
 
 - :class:`LinkControllerBoard`: LOAD_CONTROLLER (rows + commit in one frame), SET_REFLEX, MOTION.
+- :class:`LinkModelBoard`: the ``observe`` of every board that holds a world model (this
+  evaluator, ``cosim.link_learning.LinkLearningBoard``).
 - :class:`LinkEvaluatorBoard`: keeps the host's copy of the world model (the update rule of SPEC
   section 7 needs the current entry, as ``hdl.system_top.SystemHost``) and sends the resulting
   entry with OBSERVE; evaluates a population in chunks of the board's ``p_max`` slots:
