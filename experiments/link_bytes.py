@@ -2,7 +2,7 @@
 `uart` backend (the board top in Verilator over the simulated line), from the link's counters
 (`out/link.json`: `cosim.link_host.LinkStats`, per command).
 
-    nice -n 10 .venv/bin/python experiments/link_bytes.py [--out results/link_bytes] [--ga hardware,host]
+    nice -n 10 .venv/bin/python experiments/link_bytes.py [--out build/experiments/link_bytes] [--ga hardware,host]
 
 The same short configuration as the equivalence test (tests/test_learner_link.py: seed 1, arena
 one_obstacle, 2 targets, population 6, tournament 2, 2 lanes, 2 generations a phase). Prints one
@@ -61,7 +61,7 @@ def table(f: dict) -> str:
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--out", type=Path, default=Path("results/link_bytes"))
+    p.add_argument("--out", type=Path, default=Path("build/experiments/link_bytes"))
     p.add_argument("--ga", default="hardware,host", help="comma-separated: hardware, host")
     args = p.parse_args(argv)
     for ga in args.ga.split(","):
