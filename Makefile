@@ -26,8 +26,8 @@ SEEDS  ?= 5
 JOBS   ?= 2
 ARGS   ?=
 # BACKEND=serial: the boards' serial ports (PORT: a ULX3S system board, or with PORT2 the
-# controller and evaluator iCEBreakers) and the baud (default 115200; BACKEND=uart: the fastest
-# the simulated clock allows).
+# controller and evaluator iCEBreakers; with ARGS="--ga hardware" one ULX3S learner board) and the
+# baud (default 115200; BACKEND=uart: the fastest the simulated clock allows).
 PORT   ?=
 PORT2  ?=
 BAUD   ?=
@@ -39,6 +39,7 @@ all: test
 help:
 	@echo "Each target runs 'ehw COMMAND' (ehw --help; ehw COMMAND --help); ARGS=... adds options."
 	@echo "make sim       ehw sim: on-line model-based experiment (BACKEND=reference|amaranth|cocotb|serial|uart, SIM=verilator|icarus, SEED=1, HDL_SAMPLE, WAVES=1; serial: PORT=, PORT2=, BAUD=)"
+	@echo "               ARGS=\"--ga hardware\": the learning engine on every backend (serial: one ulx3s-learner on PORT; uart: LearnerLinkTop in Verilator)"
 	@echo "make test      the whole test suite (creates .venv, installs iverilog if missing)"
 	@echo "make test-fast the suite without the cocotb/Verilator simulator builds (the inner loop)"
 	@echo "make offline   ehw offline: off-line model-free experiment"

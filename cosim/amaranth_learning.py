@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from cosim.amaranth_backend import SIM_PERIOD_S, BoardMismatch, SimulatorJobs
-from cosim.boards import LearnResult, ReferenceLearningBoard
+from cosim.boards import LearnResult, ReferenceLearningBoard, checked_state_dict
 
 
 class HDLLearningBoard:
@@ -52,13 +52,7 @@ class HDLLearningBoard:
         if self.reference is not None:
             self.reference.observe(state, motion, next_state, crashed)
 
-    def state_dict(self) -> dict:
-        """The engine state, from the reference beside the HDL (equal at every learn): what the
-        checkpoint holds. No ``load_state``: the engine has no port to load generator states and
-        scores, so a resumed run replays the learns (``cosim.online.OnlineRun.load_state``)."""
-        if self.reference is None:
-            raise RuntimeError("the engine state comes from the reference board (check=True)")
-        return {"engine": self.reference.ga.state_dict(), "cycles": self.cycles}
+    state_dict = checked_state_dict  # the reference's engine state (no load_state: resume replays)
 
     async def _learn(self, generations, avoid):
         index, counts, _score, register, escaped = await self.host.learn(generations, self.reflex, avoid)

@@ -293,25 +293,55 @@ class ReferenceLearningBoard:
                            escaped=self.ga.download_index != self.ga.best_index)
 
 
+def checked_state_dict(board) -> dict:
+    """``state_dict`` of a learning board whose engine state cannot be read (an HDL engine, or one
+    behind the link: no port for its generator states and scores): the reference's beside it
+    (``board.reference``, equal at every learn), with the board's cycle counter. Such a board has
+    no ``load_state``: a resumed run replays its learns (``cosim.online.OnlineRun.load_state``)."""
+    if board.reference is None:
+        raise RuntimeError("the engine state comes from the reference board (check=True)")
+    return {"engine": board.reference.ga.state_dict(), "cycles": board.cycles}
+
+
 # backend -> "module:factory" of its learning board (by name, as make_boards does: the backend
-# modules import this one, not the reverse). cocotb's exists only inside the simulator (launcher).
+# modules import this one, not the reverse). cocotb's exists only inside the simulator (launcher),
+# and so does uart's (the same launcher as its board pair: ``cosim.uart_backend``).
 _LEARNING_FACTORIES = {
     "amaranth": "cosim.amaranth_learning:AmaranthLearningBoard",
     "cocotb": "cosim.cocotb_learning:make_cocotb_learning_board",
+    "uart": "cosim.uart_backend:make_uart_learning_boards",
+    "serial": "cosim.link_learning:make_serial_learning_boards",
 }
+# The backends whose learning factory gives (controller board, learning board): the learner top
+# (``hdl.learner_link.LearnerLinkTop``) holds the controller board beside the engine behind one
+# link, so the run makes no board pair of ``make_boards`` (that would ask for an ehw-system board).
+_LEARNING_TOPS = ("uart", "serial")
 LEARNING_BACKENDS = ("reference", *_LEARNING_FACTORIES)
 
 
-def make_learning_board(backend: str, config, seed: int, population, *, reflex: bool = True,
-                        distance_rule: str = "covered"):
-    """A learning board of the named backend holding ``population``, its generators seeded
-    with ``seed`` (32 bits), and an empty world model."""
+def make_learning_boards(backend: str, config, seed: int, population, *, controller=None,
+                         reflex: bool = True, distance_rule: str = "covered"):
+    """(controller board, learning board) of the named backend: the learning board holds
+    ``population``, its generators seeded with ``seed`` (32 bits), and an empty world model. On a
+    learner top (``_LEARNING_TOPS``) both boards come from the top; elsewhere the learning board
+    goes beside ``controller`` (the one of ``make_boards(backend)``)."""
+    if backend not in LEARNING_BACKENDS:
+        raise BackendUnavailable(
+            f"no learning board for backend {backend!r} yet; --ga hardware runs on {LEARNING_BACKENDS!r}")
+    if (controller is None) != (backend in _LEARNING_TOPS):
+        raise ValueError(f"the {backend} learning board " + ("brings its own controller board" if controller
+                         is not None else "goes beside the controller board of make_boards"))
     if backend == "reference":
-        return ReferenceLearningBoard(config, seed, population, reflex, distance_rule)
-    if backend in _LEARNING_FACTORIES:
-        import importlib
+        return controller, ReferenceLearningBoard(config, seed, population, reflex, distance_rule)
+    import importlib
 
-        module, name = _LEARNING_FACTORIES[backend].split(":")
-        return getattr(importlib.import_module(module), name)(config, seed, population, reflex, distance_rule)
-    raise BackendUnavailable(
-        f"no learning board for backend {backend!r} yet; --ga hardware runs on {LEARNING_BACKENDS!r}")
+    module, name = _LEARNING_FACTORIES[backend].split(":")
+    made = getattr(importlib.import_module(module), name)(config, seed, population, reflex=reflex,
+                                                          distance_rule=distance_rule)
+    return made if backend in _LEARNING_TOPS else (controller, made)
+
+
+def learning_top_drives(backend: str) -> bool:
+    """Whether the learning board of ``backend`` comes with its own controller board (a learner
+    top: the run then makes no ``make_boards`` pair)."""
+    return backend in _LEARNING_TOPS

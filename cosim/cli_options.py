@@ -96,7 +96,36 @@ def resolve_hdl_settings(args) -> dict:
     if p_max == 0:
         raise UserError("environment variable EHW_SYSTEM_P_MAX=0: a population RAM depth must be positive")
     return {"simulator": simulator, "hdl_sample": sample, "waves": waves,
-            "clock_hz": None if clock is None else float(clock)}
+            "clock_hz": None if clock is None else float(clock), **_link_settings(args)}
+
+
+LINK_BACKENDS = ("serial", "uart")  # the backends behind the UART host link (docs/host_link.md)
+
+
+def _link_settings(args) -> dict:
+    """``port``, ``port2`` (``--backend serial``) and ``baud`` (serial, uart): option >
+    ``EHW_PORT`` / ``EHW_PORT2`` / ``EHW_BAUD`` > None, checked against the backend and ``--ga``."""
+    backend, hardware = args.backend, getattr(args, "ga", "host") == "hardware"
+    for name, backends in (("port", ("serial",)), ("port2", ("serial",)), ("baud", LINK_BACKENDS)):
+        if getattr(args, name, None) is not None and backend not in backends:
+            raise UserError(f"--{name} is for --backend {' or '.join(backends)}, not {backend}")
+    port = getattr(args, "port", None) or _from_env("EHW_PORT", str, "")
+    port2 = getattr(args, "port2", None) or _from_env("EHW_PORT2", str, "")
+    baud = getattr(args, "baud", None)
+    if baud is not None and not (math.isfinite(baud) and baud > 0):
+        raise UserError(f"--baud must be a positive baud rate, got {baud!r}")
+    if baud is None:
+        baud = _from_env("EHW_BAUD", _positive_hz, "not a positive baud rate")
+    if backend == "serial":
+        board = "one ulx3s-learner board" if hardware else "a ULX3S (ulx3s-system) or, with --port2, two iCEBreakers"
+        if not port:
+            raise UserError(f"the serial backend needs a port: --port /dev/ttyUSB1 for {board} "
+                            "(make sim BACKEND=serial PORT=...; or EHW_PORT=...)")
+        if hardware and port2:
+            raise UserError(f"--ga hardware on --backend serial is one ulx3s-learner board on --port; "
+                            f"--port2 {port2!r} (EHW_PORT2) is the host GA's second iCEBreaker")
+    return {"port": port if backend == "serial" else None, "port2": port2 if backend == "serial" else None,
+            "baud": None if baud is None or backend not in LINK_BACKENDS else float(baud)}
 
 
 @contextlib.contextmanager
@@ -107,6 +136,9 @@ def hdl_environment(settings: dict):
               "WAVES": "1" if settings["waves"] else "0"}
     if settings["clock_hz"] is not None:  # else cosim.hardware_time.measured_clock decides
         values["EHW_CLOCK_HZ"] = repr(settings["clock_hz"])
+    for key, name in (("port", "EHW_PORT"), ("port2", "EHW_PORT2"), ("baud", "EHW_BAUD")):
+        if settings.get(key) is not None:  # the link backends read them there (cosim.link_boards)
+            values[name] = settings[key] if key != "baud" else repr(settings[key])
     saved = {k: os.environ.get(k) for k in values}
     os.environ.update(values)
     try:
@@ -129,6 +161,15 @@ def _add_hdl_options(p) -> None:
                         "cocotb+verilator and 1 elsewhere)")
     p.add_argument("--waves", action=argparse.BooleanOptionalAction, default=None,
                    help="dump the HDL simulation's waveforms (default: $WAVES, else off)")
+    p.add_argument("--port", default=None, metavar="PORT",
+                   help="--backend serial: the board's serial port, a device or a pyserial URL: a ULX3S "
+                        "with ulx3s-system, or with --ga hardware ulx3s-learner (default: $EHW_PORT)")
+    p.add_argument("--port2", default=None, metavar="PORT",
+                   help="--backend serial with the host GA: the evaluator iCEBreaker's port; --port is "
+                        "then the controller's (default: $EHW_PORT2)")
+    p.add_argument("--baud", type=float, default=None, metavar="BAUD",
+                   help="--backend serial or uart: the link's baud (default: $EHW_BAUD, else 115200 on "
+                        "serial and the simulated clock / 4 on uart)")
     p.add_argument("--clock-hz", type=float, default=None, metavar="HZ",
                    help="FPGA clock of the hardware-time figures (default: $EHW_CLOCK_HZ, else the "
                         "measured Fmax in results/fpga.json, else 12e6, the iCEBreaker's)")

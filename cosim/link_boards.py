@@ -4,10 +4,14 @@
     make sim BACKEND=serial PORT=/dev/ttyUSB1                 one ULX3S (ehw-system)
     make sim BACKEND=serial PORT=/dev/ttyUSB1 PORT2=/dev/ttyUSB3   two iCEBreakers (controller, evaluator)
 
-(``EHW_PORT``, ``EHW_PORT2``, ``EHW_BAUD`` in the environment; ``ehw sim --backend serial``.) The same board classes serve the ``uart`` backend (``cosim.uart_backend``),
-where the stream is the simulated serial line of the board top in Verilator.
+(``ehw sim --backend serial --port ... [--port2 ...] [--baud ...]``, or ``EHW_PORT``,
+``EHW_PORT2``, ``EHW_BAUD`` in the environment; with ``--ga hardware`` one ``ulx3s-learner``
+board: ``cosim.link_learning``.) The same board classes serve the ``uart`` backend
+(``cosim.uart_backend``), where the stream is the simulated serial line of the board top in Verilator.
 
 - :class:`LinkControllerBoard`: LOAD_CONTROLLER (rows + commit in one frame), SET_REFLEX, MOTION.
+- :class:`LinkModelBoard`: the ``observe`` of every board that holds a world model (this
+  evaluator, ``cosim.link_learning.LinkLearningBoard``).
 - :class:`LinkEvaluatorBoard`: keeps the host's copy of the world model (the update rule of SPEC
   section 7 needs the current entry, as ``hdl.system_top.SystemHost``) and sends the resulting
   entry with OBSERVE; evaluates a population in chunks of the board's ``p_max`` slots:
@@ -75,7 +79,31 @@ class LinkControllerBoard:
         return motion
 
 
-class LinkEvaluatorBoard:
+class LinkModelBoard:
+    """What every board over the link that holds a world model shares (``LinkEvaluatorBoard``,
+    ``cosim.link_learning.LinkLearningBoard``): the host keeps a copy of the model (``model``;
+    the update rule of SPEC section 7 needs the current entry, as ``hdl.system_top.SystemHost``)
+    and OBSERVE carries the entry it results in, so a resent OBSERVE does no harm; the reference
+    beside the board (``reference``, None without ``check``) observes the same transition."""
+
+    client: LinkClient
+    model: object  # ga.world_model.WorldModel, the host's copy
+    reference = None
+
+    @property
+    def reference_time_s(self):
+        return None if self.reference is None else self.reference.time_s
+
+    def observe(self, state: int, motion: int, next_state: int, crashed: bool) -> None:
+        state, motion, next_state = int(state), int(motion), int(next_state)
+        self.model.observe(state, motion, next_state, bool(crashed))
+        self.client.observe(state, motion, int(self.model.next_state[state, motion]),
+                            bool(self.model.crash[state, motion]), reached=next_state)
+        if self.reference is not None:
+            self.reference.observe(state, motion, next_state, crashed)
+
+
+class LinkEvaluatorBoard(LinkModelBoard):
     """EvaluatorBoard over a ``LinkClient`` (an evaluator or system board with ``p_max`` slots)."""
 
     def __init__(self, client: LinkClient, p_max: int, reflex: bool = True, check: bool = True,
@@ -92,18 +120,6 @@ class LinkEvaluatorBoard:
         self.reference = ReferenceEvaluatorBoard(reflex=reflex, distance_rule=distance_rule) if check else None
         self.client.set_reflex(reflex)
         self.client.clear()
-
-    @property
-    def reference_time_s(self):
-        return None if self.reference is None else self.reference.time_s
-
-    def observe(self, state: int, motion: int, next_state: int, crashed: bool) -> None:
-        state, motion, next_state = int(state), int(motion), int(next_state)
-        self.model.observe(state, motion, next_state, bool(crashed))
-        self.client.observe(state, motion, int(self.model.next_state[state, motion]),
-                            bool(self.model.crash[state, motion]), reached=next_state)
-        if self.reference is not None:
-            self.reference.observe(state, motion, next_state, crashed)
 
     def _chunk(self, rows) -> tuple[list, int]:
         for attempt in range(self.retries + 1):
@@ -206,7 +222,8 @@ register_backend("serial", make_serial_boards)
 
 
 def link_summary(controller, evaluator) -> dict:
-    """The link's figures of a run: bytes each way, requests, resends (per client)."""
+    """The link's figures of a run: bytes each way (in all and per command), requests, resends
+    (per client; one entry, ``controller``, where both boards share it)."""
     out = {}
     for role, board in (("controller", controller), ("evaluator", evaluator)):
         stats = board.client.stats
@@ -216,7 +233,25 @@ def link_summary(controller, evaluator) -> dict:
                                                              "clk_freq_hz": identity.clk_freq_hz, "baud": identity.baud},
                      "bytes_sent": stats.bytes_sent,
                      "bytes_received": stats.bytes_received, "requests": stats.requests,
-                     "resends": stats.resends, "resend_reasons": dict(stats.reasons)}
+                     "resends": stats.resends, "resend_reasons": dict(stats.reasons),
+                     "by_command": {name: list(v) for name, v in sorted(stats.by_command.items())}}
         if controller.client is evaluator.client:
             break
     return out
+
+
+def write_link_summary(run, out) -> dict:
+    """``out/link.json``: :func:`link_summary` of a run on link boards (``cosim.online.OnlineRun``)."""
+    import json
+    from pathlib import Path
+
+    link = link_summary(run.controller, run.evaluator)
+    (Path(out) / "link.json").write_text(json.dumps(link, indent=1) + "\n")
+    return link
+
+
+def link_lines(link: dict) -> list[str]:
+    """One line per client of a ``link.json``: what crossed the link."""
+    return [f"link ({role}): {figures['bytes_sent']:,} bytes sent, {figures['bytes_received']:,} "
+            f"received, {figures['requests']:,} requests, {figures['resends']} resends"
+            for role, figures in link.items()]

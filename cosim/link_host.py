@@ -90,16 +90,25 @@ class Identity:
 
 @dataclass
 class LinkStats:
-    """What crossed the link: bytes each way, requests, resends and the reasons for them."""
+    """What crossed the link: bytes each way, requests, resends and the reasons for them;
+    ``by_command``: command name -> [bytes sent, bytes received] (resends included), whose sums
+    are ``bytes_sent`` and ``bytes_received``."""
 
     bytes_sent: int = 0
     bytes_received: int = 0
     requests: int = 0
     resends: int = 0
     reasons: dict = field(default_factory=dict)
+    by_command: dict = field(default_factory=dict)
 
     def note(self, reason: str) -> None:
         self.reasons[reason] = self.reasons.get(reason, 0) + 1
+
+    def count(self, command: "Command", sent: int, received: int) -> None:
+        """Add ``sent`` and ``received`` bytes to ``command``'s entry of ``by_command``."""
+        entry = self.by_command.setdefault(Command(command).name, [0, 0])
+        entry[0] += sent
+        entry[1] += received
 
 
 class LinkClient:
@@ -153,6 +162,13 @@ class LinkClient:
         """Send ``command`` with ``payload``; return the reply payload of an OK reply."""
         command = Command(command)
         self.stats.requests += 1
+        sent, received = self.stats.bytes_sent, self.stats.bytes_received
+        try:
+            return self._request(command, payload, reply_length)
+        finally:
+            self.stats.count(command, self.stats.bytes_sent - sent, self.stats.bytes_received - received)
+
+    def _request(self, command: Command, payload: bytes, reply_length: int | None) -> bytes:
         last = "no reply"
         for attempt in range(self.retries + 1):
             if attempt:
@@ -255,8 +271,22 @@ class LinkClient:
         drained: that genome and the ones in flight behind it go again one at a time through
         :meth:`request` (with its retries; late replies are skipped by their tags)."""
         payloads = [pack(LOAD_GENOME_REQUEST, index=i) + genome_payload(rows) for i, rows in enumerate(population)]
+        sent, received = self.stats.bytes_sent, self.stats.bytes_received
+        redo_from, in_flight = self._pipeline(payloads, window)
+        self.stats.count(Command.LOAD_GENOME, self.stats.bytes_sent - sent, self.stats.bytes_received - received)
+        if redo_from is None:
+            return
+        for index in range(redo_from, len(payloads)):
+            if index > redo_from and index < redo_from + in_flight:
+                self.stats.resends += 1
+                self.stats.note("in flight behind a failed frame")
+            self.stats.requests -= int(index < redo_from + in_flight)  # counted again by request()
+            self.request(Command.LOAD_GENOME, payloads[index], reply_length=0)
+
+    def _pipeline(self, payloads, window: int) -> tuple[int | None, int]:
+        """Send the LOAD_GENOME frames ``window`` ahead of their replies: (None, 0) when every
+        reply was a clean OK, else (the first genome to load again, the frames then in flight)."""
         pending: list[tuple[int, int]] = []  # (tag, index) in flight
-        redo_from = None
         for index, payload in enumerate(payloads):
             self._tag = (self._tag + 1) % 256
             frame = encode_frame(Command.LOAD_GENOME, payload, tag=self._tag)
@@ -267,21 +297,12 @@ class LinkClient:
             if len(pending) >= window:
                 tag, first = pending.pop(0)
                 if not self._settled(tag):
-                    redo_from = first
-                    break
-        while redo_from is None and pending:
+                    return first, 1 + len(pending)  # the failed frame and the ones sent after it
+        while pending:
             tag, first = pending.pop(0)
             if not self._settled(tag):
-                redo_from = first
-        if redo_from is None:
-            return
-        in_flight = 1 + len(pending)  # the failed frame and the ones sent after it
-        for index in range(redo_from, len(payloads)):
-            if index > redo_from and index < redo_from + in_flight:
-                self.stats.resends += 1
-                self.stats.note("in flight behind a failed frame")
-            self.stats.requests -= int(index < redo_from + in_flight)  # counted again by request()
-            self.request(Command.LOAD_GENOME, payloads[index], reply_length=0)
+                return first, 1 + len(pending)
+        return None, 0
 
     def _settled(self, tag: int) -> bool:
         """Read the reply to the pipelined LOAD_GENOME ``tag``: True for a clean OK; else note why

@@ -1,10 +1,13 @@
 """The learning board (``cosim.boards.LearningBoard``) over the host link: a ``LearnerLinkTop``
-(``hdl.learner_link``, the ``ulx3s-learner`` bitstream) through a ``cosim.link_host.LinkClient``.
+(``hdl.learner_link``, the ``ulx3s-learner`` bitstream) through a ``cosim.link_host.LinkClient``,
+and the learning boards of the ``serial`` backend (``--ga hardware``: one ``ulx3s-learner`` on a
+port) and, over its simulated line, of the ``uart`` backend (``cosim.uart_backend``).
 
 What crosses the link: the population once (LOAD_GENOME, pipelined), the seed (SEED), every
 observation (OBSERVE, 4 bytes: the host keeps its copy of the world model for the update rule,
-as ``cosim.link_boards.LinkEvaluatorBoard``), and per learning phase one LEARN (4 bytes out,
-16 back) and one READ_GENOME of the download (119 bytes back).
+``cosim.link_boards.LinkModelBoard``), and per learning phase one LEARN (4 bytes out, 16 back)
+and one READ_GENOME of the download (119 bytes back), which the run then loads into the
+controller board beside the engine (LOAD_CONTROLLER, 119 bytes out).
 
 With ``check`` (default) the reference learning board (``ga.hardware_ga``) runs beside it and
 :class:`cosim.link_boards.LinkMismatch` is raised at the first learn whose download, counts,
@@ -15,8 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from cosim.boards import LearnResult, ReferenceLearningBoard
-from cosim.link_boards import LinkMismatch
+from cosim.boards import LearnResult, ReferenceLearningBoard, checked_state_dict
+from cosim.link_boards import LinkControllerBoard, LinkMismatch, LinkModelBoard
 from cosim.link_host import LinkClient, LinkError, pack, unpack
 from hdl.link_protocol import (LEARN_REPLY, LEARN_REQUEST, READ_GENOME_REQUEST, SEED_REQUEST, Command,
                                Design, genome_bytes, layout_bytes)
@@ -24,7 +27,7 @@ from hdl.link_protocol import (LEARN_REPLY, LEARN_REQUEST, READ_GENOME_REQUEST, 
 MAX_GENERATIONS = (1 << LEARN_REQUEST["generations"].width) - 1  # 4095
 
 
-class LinkLearningBoard:
+class LinkLearningBoard(LinkModelBoard):
     """LearningBoard over a ``LinkClient`` to an ``ehw-learner`` board (see the module docstring).
 
     The board's engine is a circuit constant: ``config`` must be the one it was built with (its
@@ -38,7 +41,7 @@ class LinkLearningBoard:
         identity = client.identity or client.expect(Design.LEARNER)
         if identity.p_max != config.population:
             raise LinkError(f"{client.port}: the board's engine holds {identity.p_max} individuals, "
-                            f"the run's population is {config.population}")
+                            f"the run's population is {config.population} (--population)")
         self.config = config
         self.model = WorldModel()  # the host's copy (the update rule needs the current entry)
         self.reference = (ReferenceLearningBoard(config, seed, population, reflex, distance_rule)
@@ -63,13 +66,7 @@ class LinkLearningBoard:
         if self.reference is not None:
             self.reference.load_population(population)
 
-    def observe(self, state: int, motion: int, next_state: int, crashed: bool) -> None:
-        state, motion, next_state = int(state), int(motion), int(next_state)
-        self.model.observe(state, motion, next_state, bool(crashed))
-        self.client.observe(state, motion, int(self.model.next_state[state, motion]),
-                            bool(self.model.crash[state, motion]), reached=next_state)
-        if self.reference is not None:
-            self.reference.observe(state, motion, next_state, crashed)
+    state_dict = checked_state_dict  # the reference's engine state (no load_state: resume replays)
 
     def read_genome(self, index: int) -> np.ndarray:
         from ga.genome import rows_from_int
@@ -100,27 +97,39 @@ class LinkLearningBoard:
                 raise LinkMismatch(f"{self.client.port}: learn({generations}, avoid={avoid}) gave {got_counts} in "
                                    f"{result.cycles} cycles (escaped {result.escaped}), the reference "
                                    f"{want_counts} in {want.cycles} (escaped {want.escaped}); downloads "
-                                   f"equal: {np.array_equal(want.rows, rows)}")
+                                   f"equal: {np.array_equal(want.rows, rows)} (the board's lanes and rates "
+                                   f"are its bitstream's: the run's are {self.config!r})")
         return result
+
+
+def learning_boards_over(client: LinkClient, config, seed: int, population, *, reflex: bool = True,
+                         distance_rule: str = "covered", check: bool = True):
+    """(controller board, learning board) of the ``ehw-learner`` board behind ``client``, both
+    over its one link: the controller board beside the engine drives the robot with the downloads.
+    Checks the board's design first; the controller board starts empty, as the reference."""
+    client.expect(Design.LEARNER)
+    controller = LinkControllerBoard(client, reflex=reflex, check=check)
+    controller.load(np.zeros(50, dtype=np.uint32))
+    learning = LinkLearningBoard(client, config, seed, population, reflex=reflex,
+                                 distance_rule=distance_rule, check=check)
+    return controller, learning
 
 
 def make_serial_learning_boards(config, seed: int, population, *, reflex: bool = True,
                                 distance_rule: str = "covered", check: bool = True,
                                 port: str | None = None, baud: float | None = None):
-    """(controller board, learning board) of one ``ulx3s-learner`` board on a serial port
-    (default ``EHW_PORT``, ``EHW_BAUD``), both over the same link: the controller board beside
-    the engine drives the robot with the downloads."""
+    """The ``serial`` backend's boards with ``--ga hardware``: (controller board, learning board)
+    of one ``ulx3s-learner`` board on a serial port (default ``EHW_PORT``, ``EHW_BAUD``; ``ehw sim
+    --port``, ``--baud``), a device or any pyserial URL."""
     import os
 
-    from cosim.link_boards import BAUD_ENV, PORT_ENV, LinkControllerBoard, _baud_from_env, open_port
+    from cosim.link_boards import BAUD_ENV, PORT_ENV, _baud_from_env, open_port
 
     port = port or os.environ.get(PORT_ENV)
     if not port:
-        raise LinkError(f"the serial learning board needs a port ({PORT_ENV}=/dev/ttyUSB1, {BAUD_ENV}=...)")
+        raise LinkError(f"the serial backend needs a port: with --ga hardware one ulx3s-learner board, "
+                        f"--port /dev/ttyUSB1 (make sim BACKEND=serial PORT=...; or {PORT_ENV}=..., "
+                        f"{BAUD_ENV}=...)")
     client = LinkClient(open_port(port, _baud_from_env() if baud is None else baud))
-    client.expect(Design.LEARNER)
-    controller = LinkControllerBoard(client, reflex=reflex, check=check)
-    controller.load(np.zeros(50, dtype=np.uint32))  # the board starts empty, as the reference
-    learning = LinkLearningBoard(client, config, seed, population, reflex=reflex,
-                                 distance_rule=distance_rule, check=check)
-    return controller, learning
+    return learning_boards_over(client, config, seed, population, reflex=reflex,
+                                distance_rule=distance_rule, check=check)

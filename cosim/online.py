@@ -37,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cosim.boards import make_boards
+from cosim.boards import learning_top_drives, make_boards, make_learning_boards
 from cosim.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
 from cosim.download import choose_download
 from cosim.failures import Track, blame
@@ -81,7 +81,8 @@ class OnlineRun:
         self.world = World(config.arena, noise=DEFAULT_NOISE if config.noise else None, seed=world_seed)
         self.course = Course.of(self.world)
         self.ga = GeneticAlgorithm(config.ga_config(), self.rng)
-        controller.set_reflex(config.reflex)
+        if controller is not None:  # None: a learner top's, set by make_run (its reflex set there)
+            controller.set_reflex(config.reflex)
         self.detectors = config.detectors()
         self.timeout = self.detectors[0]
         self.track = Track(maxlen=max(config.loop_window, 64))
@@ -334,18 +335,21 @@ class OnlineRun:
 def make_run(config: OnlineConfig, backend: str = "reference", out: Path | None = None,
              resume: bool = False, progress: bool = False) -> OnlineRun:
     """A run on fresh boards of ``backend``; with ``resume``, continued from ``out/checkpoint.json``."""
-    controller, evaluator = make_boards(backend, reflex=config.reflex, distance_rule=config.distance_rule)
+    hardware = config.ga == "hardware"
+    if hardware and learning_top_drives(backend):  # a learner top: both boards come with it (below)
+        controller = evaluator = None
+    else:
+        controller, evaluator = make_boards(backend, reflex=config.reflex, distance_rule=config.distance_rule)
     ckpt = None if out is None else Path(out) / "checkpoint.json"
     run = OnlineRun(config, controller, evaluator, checkpoint=ckpt, progress=progress, backend=backend)
-    if config.ga == "hardware":
+    if hardware:
         # The learning board takes the evaluator board's place (observe, and learn instead of
         # evaluate); it holds the host GA's initial population, so the first driver is the same.
-        from cosim.boards import make_learning_board
         from cosim.learning_phase import hardware_ga_config, hardware_seed
 
-        run.evaluator = make_learning_board(backend, hardware_ga_config(config), hardware_seed(config.seed),
-                                            run.ga.ask(), reflex=config.reflex,
-                                            distance_rule=config.distance_rule)
+        run.controller, run.evaluator = make_learning_boards(
+            backend, hardware_ga_config(config), hardware_seed(config.seed), run.ga.ask(),
+            controller=controller, reflex=config.reflex, distance_rule=config.distance_rule)
     if resume:
         if ckpt is None:
             raise CheckpointError("--resume needs an output directory holding checkpoint.json")

@@ -1,6 +1,6 @@
 """The command line of the on-line experiment (``make sim``, ``python -m cosim.online``).
 
-    python -m cosim.online [--backend reference|amaranth|cocotb] [--seed 1] [--out DIR] [--resume]
+    python -m cosim.online [--backend reference|amaranth|cocotb|serial|uart] [--seed 1] [--out DIR] [--resume]
                            [--continue-past-64 N] [--blind-bit B --blind-after-target T] ...
 
 Three pieces, so that another front end (one console script with subcommands) can reuse them:
@@ -16,8 +16,8 @@ import argparse
 import sys
 from pathlib import Path
 
-from cosim.boards import BACKENDS, BackendUnavailable, launcher
-from cosim.checkpoint import CheckpointError
+from cosim.boards import BACKENDS, launcher
+from cosim.errors import UserError
 from cosim.learning_phase import check_learning_backend
 from cosim.online import make_run
 from cosim.online_config import OnlineConfig
@@ -29,9 +29,10 @@ DEFAULT_OUT = Path("results/model_based")
 def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
     d = OnlineConfig()
     p.add_argument("--backend", choices=BACKENDS, default="reference",
-                   help="the boards: NumPy reference, Amaranth's simulator, or cocotb on the Verilog "
+                   help="the boards: NumPy reference, Amaranth's simulator, cocotb on the Verilog "
                         "(simulator: EHW_SIM=icarus|verilator; EHW_HDL_SAMPLE=k evaluates k "
-                        "controllers a population on the HDL, 0 = all)")
+                        "controllers a population on the HDL, 0 = all), real boards on a serial "
+                        "port (serial: EHW_PORT=...), the link top in Verilator (uart)")
     p.add_argument("--seed", type=int, default=d.seed)
     p.add_argument("--arena", default=d.arena)
     p.add_argument("--out", type=Path, default=DEFAULT_OUT)
@@ -133,7 +134,7 @@ def main(argv=None) -> int:
         return _error(exc)
     try:
         return run(config, args)
-    except (CheckpointError, BackendUnavailable) as exc:
+    except UserError as exc:  # CheckpointError, BackendUnavailable, a link's LinkError, ...
         return _error(exc)
 
 

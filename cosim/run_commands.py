@@ -11,8 +11,8 @@ import math
 import sys
 from pathlib import Path
 
-from cosim.cli_options import (PROG, RESULTS, _add_common, _add_hdl_options, _fill_help, _option_keys,
-                               hdl_environment, resolve_hdl_settings, write_config)
+from cosim.cli_options import (LINK_BACKENDS, PROG, RESULTS, _add_common, _add_hdl_options, _fill_help,
+                               _option_keys, hdl_environment, resolve_hdl_settings, write_config)
 from cosim.errors import UserError
 from cosim.learning_phase import check_learning_backend
 from cosim.runs import atomic_write_json, open_run
@@ -45,7 +45,8 @@ def _online_reporting():
 
 SIM_DEST_OF = {"n_targets": "targets", "distance_rule": "distance"}
 SIM_RUN_OPTIONS = {"backend": str, "simulator": str | None, "hdl_sample": int | None,
-                   "waves": bool | None, "clock_hz": float | None}
+                   "waves": bool | None, "clock_hz": float | None, "port": str | None,
+                   "port2": str | None, "baud": float | None}
 
 
 def sim_parser(p) -> None:
@@ -58,8 +59,9 @@ def sim_parser(p) -> None:
         if action.dest == "no_progress":
             action.help = "no progress bar (as --quiet)"
         if action.dest == "backend":
-            action.help = ("the boards: the NumPy reference, Amaranth's simulator, or cocotb on the "
-                           "Verilog (see --simulator, --hdl-sample)")
+            action.help = ("the boards: the NumPy reference, Amaranth's simulator, cocotb on the "
+                           "Verilog (see --simulator, --hdl-sample), real boards on a serial port "
+                           "(see --port), or the link top in Verilator over a simulated line (uart)")
     _add_common(p, out_help="the run folder (default: a fresh results/model_based/<date>-<time>-seed<S>/, "
                             "with results/model_based/latest pointing at it)")
     _add_hdl_options(p)
@@ -186,8 +188,16 @@ def cmd_sim(args, extras: dict, sub=None) -> int:
             run = make_run(config, args.backend, out, resume=args.resume, progress=progress)
             run.run()
             summary = write_results(run, out, plots=plots)
+            if args.backend == "serial":
+                from cosim.link_boards import write_link_summary
+
+                write_link_summary(run, out)
         run_dir.remove_stale()
         print(summary_table(summary))
+        if args.backend in LINK_BACKENDS:  # link.json: what crossed the link
+            from cosim.link_boards import link_lines
+
+            print("\n".join(link_lines(json.loads((out / "link.json").read_text()))))
         figures = sorted(out.glob("*.png"))
         print(f"wrote {out / 'summary.json'}" + (f" and {len(figures)} figures" if figures else ""))
     return 0

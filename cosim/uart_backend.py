@@ -3,6 +3,11 @@
 ``serial`` backend (``cosim.link_host``, ``cosim.link_boards``) over a simulated serial line.
 
     make sim BACKEND=uart [BAUD=...] ARGS="--targets 4 --population 20"
+    make sim BACKEND=uart ARGS="--ga hardware --targets 2 --population 6 --lanes 2"
+
+With ``--ga hardware`` the top is ``hdl.learner_link.LearnerLinkTop`` (the ``ulx3s-learner``
+bitstream's: the controller board beside the learning engine, built for the run's population,
+tournament, lanes and rates) and the boards are ``cosim.link_learning``'s, over the same line.
 
 The launching process writes ``system_link_top.v``, builds it in Verilator and runs this module's
 cocotb test :func:`online_experiment_uart`. Inside the simulator: the clock (``SIM_CLK_HZ``), a
@@ -31,6 +36,7 @@ from cosim.boards import register_backend
 from ga.motions import DEFAULT_DISTANCE_RULE
 
 TOPLEVEL = "system_link_top"
+LEARNER_TOPLEVEL = "learner_link_top"  # --ga hardware: the LearnerLinkTop harness
 SIM_CLK_HZ = 25_000_000  # the ULX3S's oscillator; a whole number of ns a period (40)
 CONFIG_ENV = "EHW_ONLINE_CONFIG"
 OPTIONS_ENV = "EHW_UART_OPTIONS"
@@ -55,11 +61,12 @@ def board_timeout_s(baud: float) -> float:
     return 32 * 10 / baud
 
 
-def host_timeout_s(baud: float, p_max: int) -> float:
+def host_timeout_s(baud: float, p_max: int, busy_cycles: int | None = None) -> float:
     """The host's reply timeout in simulated seconds: the longest frames both ways, the board's
-    inter-byte timeout and the longest evaluation (p_max controllers on 256 states), twice over."""
+    inter-byte timeout and the longest evaluation (p_max controllers on 256 states; or
+    ``busy_cycles``, the longest the board works before it replies), twice over."""
     frames = (2 * 262 * 10) / baud
-    evaluation = (p_max * 260 + 3000) / SIM_CLK_HZ
+    evaluation = (p_max * 260 + 3000 if busy_cycles is None else busy_cycles) / SIM_CLK_HZ
     return 2 * (frames + board_timeout_s(baud) + evaluation)
 
 
@@ -239,6 +246,20 @@ def make_uart_boards(reflex: bool = True, distance_rule: str = DEFAULT_DISTANCE_
 register_backend("uart", make_uart_boards)
 
 
+def make_uart_learning_boards(config, seed: int, population, reflex: bool = True,
+                              distance_rule: str = DEFAULT_DISTANCE_RULE, check: bool = True):
+    """``--ga hardware``: (controller board, learning board) of the LearnerLinkTop over the running
+    test's simulated line (inside the simulator only; ``cosim.boards.make_learning_boards``)."""
+    from cosim.link_host import LinkClient
+    from cosim.link_learning import learning_boards_over
+
+    if _active_line is None:
+        raise RuntimeError("the uart backend runs the experiment inside the simulator: start it with "
+                           "`ehw sim --backend uart --ga hardware` (make sim BACKEND=uart)")
+    return learning_boards_over(LinkClient(_active_line), config, seed, population, reflex=reflex,
+                                distance_rule=distance_rule, check=check)
+
+
 # -- inside the simulator ---------------------------------------------------------------------------
 
 try:
@@ -247,7 +268,7 @@ except ImportError:  # pragma: no cover - cocotb is a dependency
     cocotb = None
 
 
-async def start_top(dut, baud: float, timeout: float, line: str = "cocotbext"):
+async def start_top(dut, baud: float, timeout: float, line: str = "cocotbext", name: str = TOPLEVEL):
     """Clock, synchronous reset, the evaluator's RAM sweep; the ``line`` to the top (``LINES``:
     :class:`HarnessSerial` or :class:`SimulatedSerial`)."""
     from cocotb.clock import Clock
@@ -263,13 +284,13 @@ async def start_top(dut, baud: float, timeout: float, line: str = "cocotbext"):
     dut.rst.value = 1
     await ClockCycles(dut.clk, 2)
     dut.rst.value = 0
-    await ClockCycles(dut.clk, 2100)  # Boot + Clear of the evaluator's RAM (2049 cycles)
-    return HarnessSerial(dut, timeout) if line == "hdl" else SimulatedSerial(dut, baud, timeout)
+    await ClockCycles(dut.clk, 2100)  # Boot + Clear of the evaluators' RAMs (2049 cycles)
+    return HarnessSerial(dut, timeout, name) if line == "hdl" else SimulatedSerial(dut, baud, timeout, name)
 
 
 def _experiment(config: dict, options: dict) -> dict:
     """The blocking experiment (runs in cocotb's bridge thread)."""
-    from cosim.link_boards import link_summary
+    from cosim.link_boards import write_link_summary
     from cosim.online import OnlineConfig, make_run
     from cosim.online_report import write_results
 
@@ -279,8 +300,7 @@ def _experiment(config: dict, options: dict) -> dict:
                    progress=bool(options.get("progress")))
     run.run()
     summary = write_results(run, out, plots=bool(options.get("plots")))
-    link = link_summary(run.controller, run.evaluator)
-    (out / "link.json").write_text(json.dumps(link, indent=1) + "\n")
+    write_link_summary(run, out)
     return summary
 
 
@@ -294,7 +314,8 @@ if cocotb is not None:
 
         config = json.loads(os.environ[CONFIG_ENV])
         options = json.loads(os.environ[OPTIONS_ENV])
-        _active_line = await start_top(dut, options["baud"], options["host_timeout_s"], options["line"])
+        _active_line = await start_top(dut, options["baud"], options["host_timeout_s"], options["line"],
+                                       options.get("toplevel", TOPLEVEL))
         try:
             await bridge(_experiment)(config, options)
         finally:
@@ -305,58 +326,99 @@ if cocotb is not None:
 
 
 def write_link_verilog(out_dir: Path, *, baud: float, p_max: int | None = None,
-                       distance_rule: str = DEFAULT_DISTANCE_RULE) -> Path:
+                       distance_rule: str = DEFAULT_DISTANCE_RULE, ga_config=None) -> Path:
     """``system_link_top.v``: :class:`LinkHarness` around SystemLinkTop at ``SIM_CLK_HZ`` and
-    ``baud`` (build id 0: the simulated top does not depend on the commit)."""
+    ``baud`` (build id 0: the simulated top does not depend on the commit); with ``ga_config``
+    (``--ga hardware``) ``learner_link_top.v`` around LearnerLinkTop for that engine."""
     from amaranth.back import verilog
 
     from cosim.cocotb_run import icarus_time_zero_fix
-    from hdl.link_tops import SystemLinkTop
 
     out_dir.mkdir(parents=True, exist_ok=True)
-    path = out_dir / f"{TOPLEVEL}.v"
-    top = LinkHarness(SystemLinkTop(SIM_CLK_HZ, baud, p_max=p_max, distance_rule=distance_rule,
-                                    timeout_s=board_timeout_s(baud), build_id=0))
-    path.write_text(icarus_time_zero_fix(verilog.convert(top, name=TOPLEVEL, emit_src=False)))
+    timing = {"timeout_s": board_timeout_s(baud), "build_id": 0}
+    if ga_config is None:
+        from hdl.link_tops import SystemLinkTop
+
+        name, top = TOPLEVEL, SystemLinkTop(SIM_CLK_HZ, baud, p_max=p_max, distance_rule=distance_rule, **timing)
+    else:
+        from hdl.learner_link import LearnerLinkTop
+
+        name, top = LEARNER_TOPLEVEL, LearnerLinkTop(SIM_CLK_HZ, baud, config=ga_config,
+                                                     distance_rule=distance_rule, **timing)
+    path = out_dir / f"{name}.v"
+    text = icarus_time_zero_fix(verilog.convert(LinkHarness(top), name=name, emit_src=False))
+    if not path.exists() or path.read_text() != text:  # an unchanged file keeps the build's stamp
+        path.write_text(text)
     return path
+
+
+def learner_build_name(ga_config, distance_rule: str, baud: float) -> str:
+    """The build folder of the LearnerLinkTop harness for ``ga_config``: one build per circuit."""
+    import hashlib
+
+    key = json.dumps({"config": ga_config.to_dict(), "rule": distance_rule, "baud": baud}, sort_keys=True)
+    return f"{LEARNER_TOPLEVEL}_{hashlib.sha256(key.encode()).hexdigest()[:10]}"
 
 
 def prepare_uart_run(config, out: Path, *, baud: float, p_max: int | None = None,
                      build_name: str = TOPLEVEL, resume: bool = False, plots: bool = False,
                      progress: bool = False) -> tuple[Path, dict]:
-    """The Verilog and the environment of :func:`online_experiment_uart` for ``config``."""
+    """The Verilog and the environment of :func:`online_experiment_uart` for ``config`` (with
+    ``--ga hardware``: the LearnerLinkTop for its engine, ``p_max`` unused)."""
     from cosim.cocotb_run import SIM_BUILD
     from hdl.system_top import P_MAX
 
-    p_max = P_MAX if p_max is None else int(p_max)
-    source = write_link_verilog(SIM_BUILD / f"{build_name}_verilog", baud=baud, p_max=p_max,
-                                distance_rule=config.distance_rule)
     line = os.environ.get(LINE_ENV) or "hdl"
     if line not in LINES:
         raise ValueError(f"{LINE_ENV}={line!r}: one of {LINES!r}")
+    env = {CONFIG_ENV: json.dumps(config.to_dict())}
+    if config.ga == "hardware":
+        from cosim.learning_phase import hardware_ga_config
+        from ga.hardware_ga import learn_cycles
+
+        ga_config = hardware_ga_config(config)
+        source = write_link_verilog(SIM_BUILD / f"{build_name}_verilog", baud=baud, ga_config=ga_config,
+                                    distance_rule=config.distance_rule)
+        # the longest reply: a LEARN on a full model (or the population's upload, for small ones)
+        timeout = host_timeout_s(baud, ga_config.population,
+                                 busy_cycles=learn_cycles(256, ga_config, config.generations_per_phase))
+        toplevel = LEARNER_TOPLEVEL
+    else:
+        p_max = P_MAX if p_max is None else int(p_max)
+        source = write_link_verilog(SIM_BUILD / f"{build_name}_verilog", baud=baud, p_max=p_max,
+                                    distance_rule=config.distance_rule)
+        timeout, toplevel = host_timeout_s(baud, p_max), TOPLEVEL
+        env["EHW_SYSTEM_P_MAX"] = str(p_max)
     options = {"out": str(out), "resume": resume, "plots": plots, "progress": progress,
-               "baud": baud, "host_timeout_s": host_timeout_s(baud, p_max), "line": line}
-    env = {CONFIG_ENV: json.dumps(config.to_dict()), OPTIONS_ENV: json.dumps(options),
-           "EHW_SYSTEM_P_MAX": str(p_max)}
+               "baud": baud, "host_timeout_s": timeout, "line": line, "toplevel": toplevel}
+    env[OPTIONS_ENV] = json.dumps(options)
     return source, env
 
 
 def run_online_uart(config, out: Path | str, *, baud: float | None = None, resume: bool = False,
-                    plots: bool = False, progress: bool = False, build_name: str = TOPLEVEL,
+                    plots: bool = False, progress: bool = False, build_name: str | None = None,
                     p_max: int | None = None, waves: bool | None = None) -> dict:
     """Run the on-line experiment ``config`` over the simulated line (Verilator); returns the
-    summary the test wrote (``out/summary.json``; ``out/link.json``: the link's figures)."""
+    summary the test wrote (``out/summary.json``; ``out/link.json``: the link's figures). The
+    build folder: ``build_name``, by default SystemLinkTop's, or with ``--ga hardware`` one per
+    engine (:func:`learner_build_name`)."""
     from cosim.cocotb_run import REPO_ROOT, run_cocotb
 
     baud = sim_baud_default() if baud is None else float(baud)
     out = Path(out).resolve()
     out.mkdir(parents=True, exist_ok=True)
     (out / "summary.json").unlink(missing_ok=True)
+    hardware = config.ga == "hardware"
+    if build_name is None:
+        from cosim.learning_phase import hardware_ga_config
+
+        build_name = (learner_build_name(hardware_ga_config(config), config.distance_rule, baud)
+                      if hardware else TOPLEVEL)
     source, env = prepare_uart_run(config, out, baud=baud, p_max=p_max, build_name=build_name,
                                    resume=resume, plots=plots, progress=progress)
-    run_cocotb(sources=[source], toplevel=TOPLEVEL, test_module="cosim.uart_backend",
-               test_dir=REPO_ROOT, build_name=build_name, testcase="online_experiment_uart",
-               extra_env=env, simulator="verilator", waves=waves)
+    run_cocotb(sources=[source], toplevel=LEARNER_TOPLEVEL if hardware else TOPLEVEL,
+               test_module="cosim.uart_backend", test_dir=REPO_ROOT, build_name=build_name,
+               testcase="online_experiment_uart", extra_env=env, simulator="verilator", waves=waves)
     return json.loads((out / "summary.json").read_text())
 
 
@@ -365,13 +427,13 @@ def launch(config, args) -> int:
     from cosim.online_report import summary_table
 
     baud = sim_baud_default()
-    print(f"uart backend: SystemLinkTop in Verilator at {SIM_CLK_HZ / 1e6:g} MHz, {baud:,.0f} baud")
+    top = "LearnerLinkTop" if config.ga == "hardware" else "SystemLinkTop"
+    print(f"uart backend: {top} in Verilator at {SIM_CLK_HZ / 1e6:g} MHz, {baud:,.0f} baud")
     summary = run_online_uart(config, args.out, baud=baud, resume=args.resume,
                               plots=not args.no_plots, progress=not args.no_progress)
+    from cosim.link_boards import link_lines
+
     print(summary_table(summary))
-    link = json.loads((Path(args.out) / "link.json").read_text())
-    for role, figures in link.items():
-        print(f"link ({role}): {figures['bytes_sent']:,} bytes sent, {figures['bytes_received']:,} "
-              f"received, {figures['requests']:,} requests, {figures['resends']} resends")
+    print("\n".join(link_lines(json.loads((Path(args.out) / "link.json").read_text()))))
     print(f"wrote {Path(args.out) / 'summary.json'}")
     return 0

@@ -8,18 +8,23 @@ motions."""
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
 from cosim.boards import ReferenceLearningBoard
+from cosim.learning_phase import hardware_ga_config
 from cosim.link_boards import LinkControllerBoard
 from cosim.link_host import LinkClient, LinkError, pack, unpack
 from cosim.link_learning import LinkLearningBoard
+from cosim.online import OnlineConfig, make_run
 from ga import hardware_ga as hg
 from ga.motions import OBSTACLE_MASK
 from ga.operators import random_population
 from hdl.learner_link import LearnerLinkTop
-from hdl.link_protocol import LEARN_REPLY, LEARN_REQUEST, Command
+from hdl.link_protocol import (CRC_BYTES, HEADER_BYTES, LEARN_REPLY, LEARN_REQUEST, LOAD_GENOME_REQUEST,
+                               OBSERVE_REQUEST, READ_GENOME_REQUEST, Command, genome_bytes, layout_bytes)
 from link_sim import AmaranthSerial
 
 CLK, BAUD = 1e6, 250_000  # divisor 4: the fastest the UART runs
@@ -89,3 +94,102 @@ def test_serial_learning_board_errors_name_the_port(monkeypatch):
         make_serial_learning_boards(CONFIG, 1, population)
     with pytest.raises(LinkError, match="loop://"):  # pyserial's echo line: no board answers
         make_serial_learning_boards(CONFIG, 1, population, port="loop://", baud=115_200)
+
+
+# -- the learning board in the on-line run: the uart and serial backends (make_run) ---------------
+
+# A short --ga hardware lifetime (2 targets, population 6, 2 lanes, 2 generations a phase).
+SHORT = OnlineConfig(seed=1, ga="hardware", arena="one_obstacle", n_targets=2, population=6, tournament=2,
+                     lanes=2, generations_per_phase=2)
+
+
+def _comparable(summary: dict) -> dict:
+    return {k: v for k, v in summary.items() if k not in ("wall_time_s", "hardware", "backend")}
+
+
+def _frame(layout_or_bytes) -> int:
+    """Bytes of a frame whose payload is ``layout_or_bytes`` (a layout, or a byte count)."""
+    n = layout_or_bytes if isinstance(layout_or_bytes, int) else layout_bytes(layout_or_bytes)
+    return 1 + HEADER_BYTES + n + CRC_BYTES
+
+
+@pytest.mark.verilator
+def test_uart_learning_backend_short_lifetime_equals_reference(tmp_path):
+    """`ehw sim --backend uart --ga hardware`: LearnerLinkTop in Verilator over the simulated line
+    gives the reference's summary (interactions, generations, downloads, engine cycles), and only
+    the observations, the motions and, per phase, one LEARN, one READ_GENOME and the download's
+    LOAD_CONTROLLER cross the link after the population's one upload."""
+    from cosim.uart_backend import run_online_uart
+
+    summary = run_online_uart(SHORT, tmp_path)
+    reference = make_run(SHORT).run().summary()
+    assert summary["backend"] == "uart" and reference["learning_phases"] >= 2
+    assert _comparable(summary) == _comparable(reference)
+    link = json.loads((tmp_path / "link.json").read_text())
+    assert list(link) == ["controller"] and link["controller"]["board"]["design"] == "ehw-learner"
+    figures, phases = link["controller"], reference["learning_phases"]
+    by = figures["by_command"]
+    assert figures["resends"] == 0
+    assert [sum(v[i] for v in by.values()) for i in (0, 1)] == [figures["bytes_sent"], figures["bytes_received"]]
+    assert by["OBSERVE"] == [_frame(OBSERVE_REQUEST) * summary["interactions"], _frame(0) * summary["interactions"]]
+    assert by["LEARN"] == [_frame(LEARN_REQUEST) * phases, _frame(LEARN_REPLY) * phases]
+    assert by["READ_GENOME"] == [_frame(READ_GENOME_REQUEST) * phases, _frame(genome_bytes()) * phases]
+    assert by["LOAD_GENOME"] == [_frame(layout_bytes(LOAD_GENOME_REQUEST) + genome_bytes()) * SHORT.population,
+                                 _frame(0) * SHORT.population]
+    assert by["LOAD_CONTROLLER"][0] == _frame(genome_bytes()) * (phases + 2)  # empty, first driver, downloads
+    assert not {"EVALUATE", "READ_RESULTS"} & set(by)
+
+
+def test_serial_learning_backend_errors(monkeypatch, tmp_path, capsys):
+    """`ehw sim --backend serial --ga hardware`: one error line for a missing port, a second port,
+    a port option on another backend, and a port where no board answers (pyserial's loop://)."""
+    from cosim.cli import main
+
+    monkeypatch.delenv("EHW_PORT", raising=False)
+    monkeypatch.delenv("EHW_PORT2", raising=False)
+    run = ["sim", "--ga", "hardware", "--out", str(tmp_path / "run"), "--force", "--quiet", "--no-plots"]
+    cases = [
+        (["--backend", "serial"], "error: the serial backend needs a port: --port /dev/ttyUSB1 for one ulx3s-learner"),
+        (["--backend", "serial", "--port", "loop://", "--port2", "loop://"],
+         "error: --ga hardware on --backend serial is one ulx3s-learner board on --port"),
+        (["--backend", "reference", "--port", "loop://"], "error: --port is for --backend serial, not reference"),
+        (["--backend", "serial", "--port", "loop://", "--baud", "0"], "error: --baud must be a positive baud rate"),
+    ]
+    for args, want in cases:
+        assert main(run + args) == 2
+        err = capsys.readouterr().err
+        assert err.startswith(want) and err.count("\n") == 1, err
+    assert not (tmp_path / "run").exists()  # refused before any work
+    assert main(run + ["--backend", "serial", "--port", "loop://"]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: loop://: no board answers IDENTIFY") and err.count("\n") == 1, err
+
+
+def test_serial_learning_backend_runs_a_lifetime_through_make_run(monkeypatch):
+    """The serial backend's plumbing with --ga hardware: make_run asks the port (here a fake:
+    LearnerLinkTop in Amaranth's simulator behind the link, tests/link_sim.py) for one learner
+    board, whose controller board drives and whose engine learns every phase (each learn checked
+    against the reference beside it): the reference's phases and motions."""
+    import cosim.link_boards
+
+    # seed 8: 16 interactions, then a loop in an obstacle state (an escape learned over the link)
+    config = OnlineConfig(seed=8, ga="hardware", arena="one_obstacle", population=6, tournament=2,
+                          lanes=2, generations_per_phase=1, max_leg_steps=20)
+    opened = []
+
+    def fake_port(port, baud):
+        top = LearnerLinkTop(CLK, BAUD, config=hardware_ga_config(config), distance_rule=config.distance_rule,
+                             timeout_s=1e-4, build_id=1)
+        line = AmaranthSerial(top, timeout_cycles=40_000, name=port)
+        line.run_cycles(2100)
+        opened.append((port, baud))
+        return line
+
+    monkeypatch.setattr(cosim.link_boards, "open_port", fake_port)
+    monkeypatch.setenv("EHW_PORT", "/dev/ttyFAKE")
+    monkeypatch.delenv("EHW_BAUD", raising=False)
+    run = make_run(config, "serial").run(stop_after_phases=1)
+    want = make_run(config).run(stop_after_phases=1)
+    assert opened == [("/dev/ttyFAKE", 115_200.0)]
+    assert run.phases == want.phases and run.motions == want.motions and run.phases[0].get("escaped")
+    assert run.evaluator.state_dict() == want.evaluator.state_dict()
