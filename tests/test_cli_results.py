@@ -355,10 +355,10 @@ def test_bench_figures_loader_loads_or_raises(tmp_path_factory, text):
     from cosim.runs import merge_json
 
     path = tmp_path_factory.mktemp("bench") / "bench.json"
-    path.write_text(text)
+    path.write_bytes(text.encode())
     try:
         merged = merge_json(path, {"new_key": 1})
     except UserError:
-        assert path.read_text() == text  # a file that is not figures is left as it was
+        assert path.read_bytes() == text.encode()  # a file that is not figures is left as it was (bytes: read_text would turn a lone '\r' into '\n')
         return
     assert merged["new_key"] == 1 and json.loads(path.read_text()) == merged
