@@ -116,6 +116,45 @@ def test_the_noisy_stage_resumes_bit_for_bit_and_pool_equals_serial(tmp_path):
             {k: v for k, v in straight.items() if k not in volatile}
 
 
+def test_the_race_keeps_the_champion_unless_the_challenger_wins_again():
+    from cosim.offline_noisy import _drive_one, noisy_generation
+    from ga.operators import random_population
+
+    pop = random_population(np.random.default_rng(3), 6)
+    calls, raced = [], 0
+
+    def run_map(fn, tasks):
+        calls.append(len(tasks))
+        return [_drive_one(t) for t in tasks]
+
+    for generation in range(6):
+        records = Records()
+        stage = NoisyStage(trials=1, race=3)
+        keys, runs, fitness, _, steps, _ = noisy_generation(run_map, pop, stage, records, 1, generation,
+                                                            "one_obstacle", 80, 6)
+        top = int(np.argmax(fitness))
+        first = max(range(6), key=lambda i: (runs[i][0].fitness, -i))
+        if first == 0:
+            assert calls[-1] == 6 and records.data[keys[0]][0] == 1  # no race
+            continue
+        raced += 1
+        assert calls[-2:] == [6, 6] and records.data[keys[0]][0] == 1 + 3 == records.data[keys[first]][0]
+        raced_champion = records.data[keys[0]][2] - runs[0][0].fitness
+        raced_challenger = records.data[keys[first]][2] - runs[first][0].fitness
+        assert top == (first if raced_challenger > raced_champion else 0)
+        assert steps > sum(r[0].steps for r in runs)  # the race's runs are counted
+    assert raced >= 2
+
+
+def test_the_budget_ends_the_noisy_stage(tmp_path):
+    cfg = dict(SMALL, arena="one_obstacle", n_targets=8, max_leg_steps=80)
+    s = run_offline(1, generations_cap=400, out=tmp_path, noisy=NoisyStage(trials=1, accept_runs=1000, budget=3000),
+                    **cfg)
+    n = s["noisy_stage"]
+    assert not n["accepted"] and 3000 <= n["interactions"] and n["generations"] >= 1
+    assert s["generations"] < 400
+
+
 def test_table_key_is_the_truth_table():
     rows = np.zeros(50, dtype=np.uint32)
     assert table_key(rows) == table_key(rows.copy()) and len(table_key(rows)) == 16
