@@ -5,7 +5,9 @@ individual of every generation drives the robot from the start pose through the 
 poses (:func:`evaluate`, scored by `ga.model_free.model_free_fitness`). The run stops when the best individual reaches the target 64
 times, or at a generation cap. Then the best controller is "downloaded to the real robot": it
 drives the noisy world (`sim_world.world.DEFAULT_NOISE`) and we count the targets it reaches
-before its first crash.
+before its first crash (20 noise seeds). With ``noisy=NoisyStage(trials=K)`` (``--noisy-trials``,
+off by default) the GA goes on in the noisy world once the noise-free best reaches every target
+(`cosim.offline_noisy`, docs/offline.md round 3).
 
     python -m cosim.offline --seed 1 [--generations-cap G] [--workers W] [--resume]
                             [--out results/model_free] [--arena NAME] [--max-leg-steps N]
