@@ -5,7 +5,9 @@ individual of every generation drives the robot from the start pose through the 
 poses (:func:`evaluate`, scored by `ga.model_free.model_free_fitness`). The run stops when the best individual reaches the target 64
 times, or at a generation cap. Then the best controller is "downloaded to the real robot": it
 drives the noisy world (`sim_world.world.DEFAULT_NOISE`) and we count the targets it reaches
-before its first crash.
+before its first crash (20 noise seeds). With ``noisy=NoisyStage(trials=K)`` (``--noisy-trials``,
+off by default) the GA goes on in the noisy world once the noise-free best reaches every target
+(`cosim.offline_noisy`, docs/offline.md round 3).
 
     python -m cosim.offline --seed 1 [--generations-cap G] [--workers W] [--resume]
                             [--out results/model_free] [--arena NAME] [--max-leg-steps N]
@@ -37,6 +39,9 @@ from typing import Callable
 import numpy as np
 
 from cosim.checkpoint import load_checkpoint, save_checkpoint
+from cosim.offline_noisy import (TRANSFER_TRIALS, NoisyStage, Records, load_arena_arg, noisy_generation,
+                                 transfer)
+from cosim.offline_report import plot_results, seeds_table  # noqa: F401 (seeds_table: the API)
 from cosim.runs import atomic_savefig, atomic_write_json
 from ga.evolution import GAConfig, GeneticAlgorithm
 from ga.genome import hex_from_rows, rows_from_hex
@@ -52,7 +57,8 @@ DEFAULT_ARENA = "default"
 DEFAULT_GENERATIONS_CAP = 3000
 # Step limit of one leg: see docs/offline.md for the measurements behind it.
 DEFAULT_MAX_LEG_STEPS = 150
-TRANSFER_TRIALS = 10  # noisy-world runs of the best controller, noise seeds seed*1000 + i
+# The noisy stage after the noise-free evolution (cosim.offline_noisy; docs/offline.md, issue 17).
+DEFAULT_NOISY = NoisyStage()
 
 def default_ga_config(**overrides) -> GAConfig:
     """Paper section 5.1: population 20, tournament 5, elitism 1; our operator rates, plus the
@@ -113,11 +119,7 @@ def _world(arena: str):
     return world
 
 
-def _load_arena(arena: str):
-    from sim_world.arena import load_arena
-
-    path = Path(arena)
-    return load_arena(path if path.suffix == ".json" else arena)
+_load_arena = load_arena_arg
 
 
 def _evaluate_one(task) -> Evaluation:
@@ -168,6 +170,12 @@ class Evaluator:
         self.simulated_steps += sum(e.steps for e in fresh)
         return [found[key] for key in keys]
 
+    def map(self, fn, tasks) -> list:
+        """``fn`` over ``tasks``, in order: serially or over the pool (the noisy stage's runs)."""
+        if self._pool is None:
+            return [fn(t) for t in tasks]
+        return list(self._pool.map(fn, tasks))
+
     def close(self) -> None:
         if self._pool is not None:
             self._pool.shutdown(cancel_futures=True)
@@ -188,9 +196,10 @@ def _arena_digest(arena: str) -> str:
     return hashlib.sha256(data.encode()).hexdigest()[:16]
 
 
-def run_config(seed: int, arena: str, max_leg_steps: int, n_targets: int, ga_config: GAConfig) -> dict:
+def run_config(seed: int, arena: str, max_leg_steps: int, n_targets: int, ga_config: GAConfig,
+               noisy: NoisyStage | None = None) -> dict:
     """The parameters that define a run: a checkpoint resumes only under the same ones."""
-    return {
+    config = {
         "seed": int(seed),
         "arena": str(arena),
         "arena_sha256_16": _arena_digest(arena),
@@ -198,6 +207,9 @@ def run_config(seed: int, arena: str, max_leg_steps: int, n_targets: int, ga_con
         "n_targets": int(n_targets),
         "ga": ga_config.to_dict(),
     }
+    if noisy is not None and noisy.trials:
+        config["noisy_stage"] = noisy.to_dict()
+    return config
 
 
 def _fresh_state(ga: GeneticAlgorithm) -> dict:
@@ -210,7 +222,50 @@ def _fresh_state(ga: GeneticAlgorithm) -> dict:
         "history": [],
         "best": None,
         "wall_time_s": 0.0,
+        "stage": 1,  # 2: the noisy stage (cosim.offline_noisy)
+        "noisy": _fresh_noisy(),
     }
+
+
+def _fresh_noisy() -> dict:
+    return {"records": {}, "from_generation": None, "interactions": 0, "noise_free_best": None,
+            "accepted": False}
+
+
+def _best_entry(rows, ev: Evaluation, **extra) -> dict:
+    return {"genome": hex_from_rows(rows), "fitness": ev.fitness, "targets_reached": ev.targets_reached,
+            "steps": ev.steps, "crashed": ev.crashed, "timed_out": ev.timed_out,
+            "final_distance_mm": ev.final_distance_mm, **extra}
+
+
+def _noisy_step(ga, pop, evaluator, noisy: NoisyStage, records: Records, state, seed, arena, max_leg_steps,
+                n_targets, states, transitions):
+    """One generation of the noisy stage (`cosim.offline_noisy`): every individual on the
+    generation's K common noise seeds, fitness = its mean over them. The best is also driven once
+    noise-free (counted, for the summary and the history).
+    Returns the noise-free Evaluation of the best and the history entry's noisy fields."""
+    keys, runs, fitness, failures, steps, simulated = noisy_generation(
+        evaluator.map, pop, noisy, records, seed, ga.generation, arena, max_leg_steps, n_targets)
+    fitness = np.array(fitness, dtype=float)
+    ga.tell(fitness, failures=failures)
+    i = int(np.argmax(fitness))
+    for rs in runs:
+        for r in rs:
+            states |= r.states
+            transitions |= r.transitions
+    driven = evaluator.simulated_steps
+    best = evaluator(pop[i:i + 1])[0]  # noise-free (cached by truth table)
+    states |= best.states
+    transitions |= best.transitions
+    state["interactions"] += steps + best.steps
+    state["noisy"]["interactions"] += steps + best.steps
+    state["simulated_interactions"] += simulated + evaluator.simulated_steps - driven
+    record = records.summary(keys[i])
+    state["best"] = _best_entry(pop[i], best, noisy_fitness=float(fitness[i]), **record)
+    if records.accepted(keys[i], noisy.accept_runs):
+        state["noisy"]["accepted"] = True
+    return best, {"stage": 2, "best_noisy_fitness": float(fitness[i]), **record,
+                  "clean_runs": sum(r.clean for rs in runs for r in rs)}
 
 
 def run_offline(
@@ -228,6 +283,7 @@ def run_offline(
     plots: bool = True,
     transfer_trials: int = TRANSFER_TRIALS,
     on_generation: Callable[[dict], None] | None = None,
+    noisy: NoisyStage | None = None,
 ) -> dict:
     """Run (or, with ``resume``, continue) the model-free experiment; return the summary dict.
 
@@ -240,22 +296,34 @@ def run_offline(
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     ga_config = ga_config or default_ga_config()
-    config = run_config(seed, arena, max_leg_steps, n_targets, ga_config)
+    noisy = DEFAULT_NOISY if noisy is None else noisy
+    config = run_config(seed, arena, max_leg_steps, n_targets, ga_config, noisy)
     ck_path = out / "checkpoint.json"
     if resume and ck_path.exists():
         state = load_checkpoint(ck_path, KIND, config)
+        state.setdefault("stage", 1)  # a checkpoint written before the noisy stage existed
+        state.setdefault("noisy", _fresh_noisy())
         ga = GeneticAlgorithm.from_state_dict(state["ga"], np.random.default_rng())
     else:
         ga = GeneticAlgorithm(ga_config, np.random.default_rng(seed))
         state = _fresh_state(ga)
     states = set(state["world_states"])
     transitions = {tuple(t) for t in state["transitions"]}
+    records = Records(state["noisy"]["records"])
     t_session = time.perf_counter()
     wall_before = state["wall_time_s"]
 
-    def finished() -> bool:
+    def reached_all() -> bool:
         best = state["best"]
         return best is not None and best["targets_reached"] >= n_targets
+
+    def finished() -> bool:
+        if noisy.trials:
+            first = state["noisy"]["from_generation"]
+            return state["noisy"]["accepted"] or (first is not None and (
+                ga.generation - first + 1 >= noisy.max_generations
+                or 0 < noisy.budget <= state["noisy"]["interactions"]))
+        return reached_all()
 
     bar = tqdm(total=generations_cap, initial=min(ga.generation, generations_cap), disable=not progress,
                desc=f"model-free seed {seed}", unit="gen", dynamic_ncols=True)
@@ -263,39 +331,42 @@ def run_offline(
         with Evaluator(arena, max_leg_steps, n_targets, workers) as evaluator:
             while not finished() and ga.generation < generations_cap:
                 pop = ga.ask()
-                driven = evaluator.simulated_steps
-                evals = evaluator(pop)
-                state["simulated_interactions"] += evaluator.simulated_steps - driven
-                fitness = np.array([e.fitness for e in evals], dtype=float)
-                ga.tell(fitness, failures=[e.failure_state for e in evals])
-                i = int(np.argmax(fitness))  # the same individual tell() took as best
-                best = evals[i]
-                for e in evals:
-                    states |= e.states
-                    transitions |= e.transitions
-                state["interactions"] += sum(e.steps for e in evals)
-                state["best"] = {
-                    "genome": hex_from_rows(pop[i]),
-                    "fitness": best.fitness,
-                    "targets_reached": best.targets_reached,
-                    "steps": best.steps,
-                    "crashed": best.crashed,
-                    "timed_out": best.timed_out,
-                    "final_distance_mm": best.final_distance_mm,
-                }
+                if state["stage"] == 2:
+                    best, entry_extra = _noisy_step(ga, pop, evaluator, noisy, records, state, seed, arena,
+                                                    max_leg_steps, n_targets, states, transitions)
+                else:
+                    driven = evaluator.simulated_steps
+                    evals = evaluator(pop)
+                    state["simulated_interactions"] += evaluator.simulated_steps - driven
+                    fitness = np.array([e.fitness for e in evals], dtype=float)
+                    ga.tell(fitness, failures=[e.failure_state for e in evals])
+                    i = int(np.argmax(fitness))  # the same individual tell() took as best
+                    best = evals[i]
+                    for e in evals:
+                        states |= e.states
+                        transitions |= e.transitions
+                    state["interactions"] += sum(e.steps for e in evals)
+                    state["best"] = _best_entry(pop[i], best)
+                    entry_extra = {}
+                    if noisy.trials and best.targets_reached >= n_targets:
+                        state["stage"] = 2  # the noise-free best reaches every target: go noisy
+                        state["noisy"]["from_generation"] = ga.generation + 1
+                        state["noisy"]["noise_free_best"] = dict(state["best"])
                 entry = {
                     "generation": ga.generation,
                     "best_fitness": best.fitness,
                     "best_targets": best.targets_reached,
                     "best_steps": best.steps,
-                    "mean_fitness": float(fitness.mean()),
+                    "mean_fitness": float(ga.last_fitness.mean()),
                     "interactions": state["interactions"],
                     "world_states": len(states),
                     "transitions": len({(t[0], t[1]) for t in transitions}),
                     "transition_outcomes": len(transitions),
+                    **entry_extra,
                 }
                 state["history"].append(entry)
                 state["ga"] = ga.state_dict()
+                state["noisy"]["records"] = records.to_dict()
                 state["world_states"] = sorted(states)
                 state["transitions"] = sorted(transitions)
                 state["wall_time_s"] = wall_before + time.perf_counter() - t_session
@@ -308,7 +379,7 @@ def run_offline(
     finally:
         bar.close()
 
-    summary = _summary(seed, state, config, ga_config, workers, finished())
+    summary = _summary(seed, state, config, ga_config, workers, reached_all())
     if transfer_trials:
         summary["transfer"] = transfer(summary["best_genome"], arena, max_leg_steps, n_targets, seed,
                                        transfer_trials)
@@ -345,111 +416,20 @@ def _summary(seed, state, config, ga_config: GAConfig, workers, reached_all) -> 
         "max_run_steps": max_run_steps(config["max_leg_steps"], config["n_targets"]),
         "config": config,
         "paper": PAPER,
+        **({"noisy_stage": _noisy_summary(state, generations)} if "noisy_stage" in config else {}),
     }
 
 
-# -- Transfer to the "real" (noisy) world --------------------------------------------------------
-
-
-def transfer(genome_hex: str | None, arena: str, max_leg_steps: int, n_targets: int, seed: int,
-             trials: int = TRANSFER_TRIALS) -> dict:
-    """Drive the noisy world with the best controller: targets reached before the first crash
-    (or a leg time-out), over ``trials`` noise seeds ``seed * 1000 + i``."""
-    from sim_world.world import DEFAULT_NOISE, World
-
-    if genome_hex is None:
-        return {}
-    table = truth_tables(rows_from_hex(genome_hex), reflex=True)
-    targets, steps, crashed = [], [], []
-    for i in range(trials):
-        world = World(_load_arena(arena), noise=DEFAULT_NOISE, seed=seed * 1000 + i)
-        res = run_course(world, table, max_leg_steps, n_targets=n_targets, stop_on_crash=True)
-        targets.append(int(res.targets_reached))
-        steps.append(int(res.steps))
-        crashed.append(bool(res.crashed))
-    return {
-        "noise": repr(DEFAULT_NOISE),
-        "noise_seeds": [seed * 1000 + i for i in range(trials)],
-        "targets_without_crash": targets,
-        "targets_without_crash_median": float(np.median(targets)),
-        "all_targets_fraction": float(np.mean([t >= n_targets for t in targets])),
-        "ended_by_crash": crashed,
-        "steps": steps,
-    }
-
-
-# -- Figures -------------------------------------------------------------------------------------
-
-
-def plot_results(out: Path, history: list, genome_hex: str | None, arena: str, max_leg_steps: int,
-                 n_targets: int) -> dict:
-    """Fig. 5 (the best controller's path through the 64 legs) and Fig. 6 (steps and fitness of
-    the best individual per generation). Returns the file names written."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    files = {}
-    if history:
-        gens = [h["generation"] for h in history]
-        fig, ax1 = plt.subplots(figsize=(7, 4))
-        ax1.plot(gens, [h["best_steps"] for h in history], color="tab:blue", label="steps of the best")
-        ax1.set_xlabel("generation")
-        ax1.set_ylabel("steps (interactions) of the best", color="tab:blue")
-        ax2 = ax1.twinx()
-        ax2.plot(gens, [h["best_fitness"] for h in history], color="tab:red", label="fitness of the best")
-        ax2.set_ylabel("fitness of the best (targets + R2 + R3)", color="tab:red")
-        ax1.set_title("Model-free evolution: the best individual per generation (cf. paper Fig. 6)")
-        fig.tight_layout()
-        atomic_savefig(fig, out / "fig6_best_per_generation.png", dpi=120)
-        plt.close(fig)
-        files["fig6"] = "fig6_best_per_generation.png"
-    if genome_hex is not None:
-        from sim_world.world import World
-
-        world = World(_load_arena(arena))
-        table = truth_tables(rows_from_hex(genome_hex), reflex=True)
-        res = run_course(world, table, max_leg_steps, n_targets=n_targets, record=True)
-        title = (f"Best model-free controller: {res.targets_reached} targets, {res.steps} steps "
-                 "(cf. paper Fig. 5)")
-        path = out / "fig5_trajectory.png"
-        from sim_world.render import plot_trajectory
-
-        plot_trajectory(world.arena, res.trajectory, path, title=title)
-        files["fig5"] = path.name
-    return files
-
-
-# -- Several seeds: the table beside the paper's row ---------------------------------------------
-
-TABLE_KEYS = ("generations", "interactions", "world_states", "transitions", "genetic_operations")
-
-
-def seeds_table(summaries: list[dict]) -> str:
-    """A Markdown table: one row per run, then median [min, max], then the paper's row."""
-    head = ["seed", "reached 64", *TABLE_KEYS, "wall time (s)", "noisy world: targets before a crash"]
-    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    for s in summaries:
-        t = s.get("transfer", {}).get("targets_without_crash", [])
-        lines.append("| " + " | ".join([str(s["seed"]), "yes" if s["reached_all_targets"] else
-                                        f"no ({s['targets_reached']})", *(f"{s[k]:,}" for k in TABLE_KEYS),
-                                        f"{s['wall_time_s']:.0f}", f"median {np.median(t):g} of {len(t)}" if t
-                                        else "-"]) + " |")
-    if summaries:
-        cells = []
-        for k in TABLE_KEYS:
-            v = [s[k] for s in summaries]
-            cells.append(f"{np.median(v):,.0f} [{min(v):,}, {max(v):,}]")
-        wall = [s["wall_time_s"] for s in summaries]
-        t = [x for s in summaries for x in s.get("transfer", {}).get("targets_without_crash", [])]
-        reached = sum(s["reached_all_targets"] for s in summaries)
-        lines.append("| " + " | ".join([f"median [range] of {len(summaries)}", f"{reached}/{len(summaries)}",
-                                        *cells, f"{np.median(wall):.0f} [{min(wall):.0f}, {max(wall):.0f}]",
-                                        f"median {np.median(t):g} [{min(t)}, {max(t)}]" if t else "-"]) + " |")
-    lines.append("| " + " | ".join(["paper", "yes", *(f"{PAPER[k]:,}" for k in TABLE_KEYS), "-",
-                                    "\"works well\""]) + " |")
-    return "\n".join(lines) + "\n"
+def _noisy_summary(state, generations: int) -> dict:
+    """What the noisy stage did: from which generation, its interactions (in ``interactions``
+    already), whether a controller was accepted, the final best's record, the noise-free best."""
+    noisy, best = state["noisy"], state["best"] or {}
+    first = noisy["from_generation"]
+    return {"from_generation": first, "generations": 0 if first is None else generations - first + 1,
+            "interactions": noisy["interactions"], "accepted": noisy["accepted"],
+            "controllers_recorded": len(noisy["records"]),
+            **{k: best[k] for k in ("noisy_runs", "noisy_clean_runs", "noisy_mean_clean_legs") if k in best},
+            "noise_free_best": noisy["noise_free_best"]}
 
 
 # -- Command line --------------------------------------------------------------------------------
@@ -465,6 +445,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     parser.add_argument("--arena", default=DEFAULT_ARENA, help="arena name or .json path")
     parser.add_argument("--max-leg-steps", type=int, default=DEFAULT_MAX_LEG_STEPS,
                         help="step limit of one leg")
+    parser.add_argument("--noisy-trials", type=int, default=DEFAULT_NOISY.trials,
+                        help="the noisy stage (cosim.offline_noisy): common noise seeds per generation "
+                             "once the noise-free best reaches every target (0: none)")
+    parser.add_argument("--noisy-accept-runs", type=int, default=DEFAULT_NOISY.accept_runs,
+                        help="noisy stage: a controller with this many noisy runs, all clean, ends the run")
+    parser.add_argument("--noisy-max-failures", type=int, default=DEFAULT_NOISY.max_failures,
+                        help="noisy stage: a run stops at this many failed legs")
+    parser.add_argument("--noisy-max-generations", type=int, default=DEFAULT_NOISY.max_generations,
+                        help="noisy stage: its generation cap (then the best by record is the result)")
+    parser.add_argument("--noisy-race", type=int, default=DEFAULT_NOISY.race,
+                        help="noisy stage: seeds of the champion/challenger race for the elite (0: none)")
+    parser.add_argument("--noisy-budget", type=int, default=DEFAULT_NOISY.budget,
+                        help="noisy stage: it ends once it has spent this many interactions (0: no limit)")
+    parser.add_argument("--transfer-trials", type=int, default=TRANSFER_TRIALS,
+                        help="noisy-world runs of the final controller (noise seeds seed*1000+i)")
     parser.add_argument("--no-plots", action="store_true",
                         help="write no figures (an earlier run's figures are removed all the same)")
     parser.add_argument("--table", nargs="+", type=Path, metavar="SUMMARY",

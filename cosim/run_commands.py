@@ -219,7 +219,9 @@ def cmd_offline(args, extras: dict, sub=None) -> int:
 
     if args.table:
         return print_table(args.table)
-    for name, least in (("generations_cap", 1), ("workers", 1), ("max_leg_steps", 1), ("seed", 0)):
+    for name, least in (("generations_cap", 1), ("workers", 1), ("max_leg_steps", 1), ("seed", 0),
+                        ("noisy_trials", 0), ("noisy_accept_runs", 1), ("noisy_max_failures", 1), ("noisy_max_generations", 1), ("noisy_race", 0), ("noisy_budget", 0),
+                        ("transfer_trials", 0)):
         if getattr(args, name) < least:
             raise UserError(f"--{name.replace('_', '-')} must be at least {least}, got {getattr(args, name)!r}")
     from sim_world.arena import load_arena
@@ -232,7 +234,7 @@ def cmd_offline(args, extras: dict, sub=None) -> int:
 
             load_checkpoint(out / "checkpoint.json", offline.KIND,
                             offline.run_config(args.seed, args.arena, args.max_leg_steps, offline.N_TARGETS,
-                                               offline.default_ga_config()))
+                                               offline.default_ga_config(), noisy_stage(args)))
         options = {k: getattr(args, k) for k in _option_keys(sub, exclude=("table",))}
         write_config(out, {k: (str(v) if isinstance(v, Path) else v) for k, v in options.items()}, {}, "offline")
         run_offline_from_args(args, out)
@@ -257,6 +259,14 @@ def print_table(paths) -> int:
     return 0
 
 
+def noisy_stage(args):
+    """The off-line run's noisy stage from parsed ``args`` (``--noisy-*``)."""
+    from cosim.offline_noisy import NoisyStage
+
+    return NoisyStage(trials=args.noisy_trials, accept_runs=args.noisy_accept_runs,
+                      max_failures=args.noisy_max_failures, max_generations=args.noisy_max_generations, race=args.noisy_race, budget=args.noisy_budget)
+
+
 def run_offline_from_args(args, out: Path) -> dict:
     """Run the off-line experiment of parsed ``args`` into the run folder ``out``; print the figures."""
     from cosim import offline
@@ -264,7 +274,7 @@ def run_offline_from_args(args, out: Path) -> dict:
     summary = offline.run_offline(
         args.seed, generations_cap=args.generations_cap, workers=args.workers, resume=args.resume,
         out=out, arena=args.arena, max_leg_steps=args.max_leg_steps, progress=not args.quiet,
-        plots=not args.no_plots,
+        plots=not args.no_plots, noisy=noisy_stage(args), transfer_trials=args.transfer_trials,
     )
     offline._WORLDS.clear()  # free the pymunk spaces now, not during interpreter shutdown
     keys = ("seed", "reached_all_targets", "targets_reached", "generations", "genetic_operations",
@@ -274,5 +284,11 @@ def run_offline_from_args(args, out: Path) -> dict:
     if summary.get("transfer"):
         t = summary["transfer"]
         print(f"{'transfer (noisy world)':22s} targets before a crash: {t['targets_without_crash']}")
+        print(f"{'transfer fraction':22s} {t['all_targets_fraction']} of {len(t['targets_without_crash'])} "
+              "reach every target without a crash or a time-out")
+    if summary.get("noisy_stage"):
+        n = summary["noisy_stage"]
+        print(f"{'noisy stage':22s} from generation {n['from_generation']}, {n['interactions']} interactions, "
+              f"accepted: {n['accepted']}")
     print(f"wrote {Path(out) / 'summary.json'}")
     return summary

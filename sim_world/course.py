@@ -5,6 +5,12 @@ the k-th target (k = 1, 2, ...) to ``arena.positions[(k - 1) % 64]`` (``Course``
 rule is written: the on-line and off-line runs, the baseline and the Gymnasium env use it). The run stops at the
 ``n_targets``-th target, at a crash (when ``stop_on_crash``), or when a leg exceeds
 ``max_leg_steps`` interactions (a time-out: the robot is stuck in a loop).
+
+With ``skip_failed_legs`` a crash or a time-out ends only its leg: the leg counts as failed and the
+robot goes on to the next leg's pose as after a target, so a run tries all ``n_targets`` legs (or
+stops at ``max_failures`` failed legs). The off-line method's noisy stage scores controllers so
+(``cosim.offline_noisy``): the clean legs of one run vary less than the targets before a first
+crash.
 """
 
 from __future__ import annotations
@@ -71,6 +77,8 @@ class CourseResult:
     states: set[int] = field(default_factory=set)
     transitions: set[tuple[int, int, int, bool]] = field(default_factory=set)
     trajectory: list[tuple[float, float, float, str]] = field(default_factory=list)
+    failed_legs: int = 0  # legs ended by a crash or a time-out (only with skip_failed_legs)
+    failure_states: list[int] = field(default_factory=list)  # the state each failed leg ended in
 
 
 def run_course(
@@ -81,17 +89,28 @@ def run_course(
     start: str | int = "start",
     stop_on_crash: bool = True,
     record: bool = False,
+    skip_failed_legs: bool = False,
+    max_failures: int | None = None,
+    leg_noise_seed=None,
 ) -> CourseResult:
     """Run the motion table ``table`` ((256,) ints, reflex already applied) through the course.
 
     ``start`` is "start" (the arena's start pose), "here" (the world's current pose) or a
     relocation index i (begin at ``positions[i]``; the next relocation is then positions[i + 1]).
+    ``skip_failed_legs`` (see the module docstring): ``n_targets`` legs are tried, a crash or a
+    time-out fails its leg, and the run ends at ``max_failures`` failed legs (None: never early);
+    ``targets_reached`` counts the clean legs. ``leg_noise_seed`` (a function of the leg index
+    0, 1, ...): the world's noise generator is re-seeded with its value before each leg's start
+    pose is sensed, so a leg's noise does not depend on what earlier legs drew (common random
+    numbers per leg: two controllers that drive a leg alike meet the same noise there).
     """
     if max_leg_steps < 1:
         raise ValueError(f"max_leg_steps must be >= 1, got {max_leg_steps!r}")
     motions = [int(m) for m in np.asarray(table).reshape(-1)]
     if len(motions) != 256 or not all(0 <= m < 8 for m in motions):
         raise ValueError(f"table must hold 256 motions in 0..7, got shape {np.shape(table)}")
+    if leg_noise_seed is not None:
+        world.reset(leg_noise_seed(0))
     if start == "start":
         world.reset_to_start()
         course = Course.of(world)
@@ -111,32 +130,45 @@ def run_course(
         traj.append((x, y, h, ""))
     leg = 0
     steps = 0
-    while res.targets_reached < n_targets:
-        if leg >= max_leg_steps:
+    while res.targets_reached + res.failed_legs < n_targets:
+        failed = leg >= max_leg_steps
+        if failed and not skip_failed_legs:
             res.timed_out = True
             break
-        a = motions[s]
-        out = step(a)
-        steps += 1
-        leg += 1
-        s2 = out.state
-        transitions.add((s, a, s2, out.crashed))
-        states.add(s2)
-        if record:
-            x, y, h = world.pose
-            traj.append((x, y, h, "crash" if out.crashed else ("target" if out.reached else "")))
-        if out.crashed:
-            res.crashes += 1
-            if stop_on_crash:
-                res.crashed = True
+        if not failed:
+            a = motions[s]
+            out = step(a)
+            steps += 1
+            leg += 1
+            s2 = out.state
+            transitions.add((s, a, s2, out.crashed))
+            states.add(s2)
+            if record:
+                x, y, h = world.pose
+                traj.append((x, y, h, "crash" if out.crashed else ("target" if out.reached else "")))
+            if out.crashed:
+                res.crashes += 1
+                if skip_failed_legs:
+                    failed = True
+                elif stop_on_crash:
+                    res.crashed = True
+                    break
+        if failed:  # only with skip_failed_legs: the leg ends here, the next one starts
+            res.failed_legs += 1
+            res.failure_states.append(s)
+            if max_failures is not None and res.failed_legs >= max_failures:
                 break
-        if out.reached:
+        elif out.reached:
             res.targets_reached += 1
             res.leg_steps.append(leg)
+        if failed or out.reached:
             leg = 0
-            if res.targets_reached >= n_targets:
+            done = res.targets_reached + res.failed_legs
+            if done >= n_targets:
                 break
-            s2 = course.relocate(world, res.targets_reached)
+            if leg_noise_seed is not None:
+                world.reset(leg_noise_seed(done))
+            s2 = course.relocate(world, done)
             states.add(s2)
             if record:
                 x, y, h = world.pose

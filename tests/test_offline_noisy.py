@@ -1,0 +1,160 @@
+"""The off-line method's noisy stage (cosim.offline_noisy) and the course's skipped legs."""
+
+import json
+
+import numpy as np
+import pytest
+
+from cosim.offline import default_ga_config, run_offline
+from cosim.offline_noisy import NoisyRun, NoisyStage, Records, drive_noisy, noise_seeds, table_key
+from ga.motions import Motion
+from sim_world.course import run_course
+from sim_world.world import DEFAULT_NOISE, World
+
+SMALL = dict(arena="empty", max_leg_steps=60, n_targets=3, progress=False, plots=False, transfer_trials=2,
+             ga_config=default_ga_config(population=6, tournament=2))
+
+
+def _forward_table():
+    return np.full(256, int(Motion.FORWARD), dtype=np.uint8)
+
+
+def test_skipped_legs_try_every_leg_and_stop_at_max_failures():
+    world = World("one_obstacle")
+    stuck = np.full(256, int(Motion.TURN_LEFT), dtype=np.uint8)  # never reaches anything: time-outs
+    res = run_course(world, stuck, 20, n_targets=5, skip_failed_legs=True)
+    assert (res.targets_reached, res.failed_legs, res.steps) == (0, 5, 100)
+    assert len(res.failure_states) == 5 and not res.timed_out
+    res = run_course(world, stuck, 20, n_targets=5, skip_failed_legs=True, max_failures=2)
+    assert (res.failed_legs, res.steps) == (2, 40)
+    # Without the option the first time-out ends the run, as before.
+    res = run_course(world, stuck, 20, n_targets=5)
+    assert res.timed_out and res.steps == 20 and res.failed_legs == 0
+
+
+def test_a_crash_fails_its_leg_and_the_next_leg_starts():
+    world = World("one_obstacle")
+    res = run_course(world, _forward_table(), 150, n_targets=64, skip_failed_legs=True)
+    assert res.crashes == res.failed_legs >= 1
+    assert res.targets_reached + res.failed_legs == 64
+
+
+def test_leg_noise_seeds_make_a_leg_independent_of_the_legs_before():
+    world = World("default", noise=DEFAULT_NOISE)
+    table = _forward_table()
+    seed = lambda leg: [7, leg]  # noqa: E731
+    # Leg 1 onwards starts at positions[0] either way; with per-leg seeds its outcome is the same
+    # whether the run began at the start pose or at leg 1's pose.
+    a = run_course(world, table, 60, n_targets=3, skip_failed_legs=True, record=True, leg_noise_seed=seed)
+    b = run_course(world, table, 60, n_targets=3, skip_failed_legs=True, record=True,
+                   leg_noise_seed=lambda leg: [7, leg + 1], start=0)
+    relocated = [i for i, p in enumerate(a.trajectory) if p[3] == "relocate"][0]
+    poses = lambda traj: [p[:3] for p in traj]  # noqa: E731
+    assert poses(a.trajectory[relocated:]) == poses(b.trajectory[:len(a.trajectory) - relocated])
+
+
+def test_common_noise_seeds_are_new_each_generation_and_never_the_transfer_s():
+    assert noise_seeds(1, 5, 2) == [[170017, 1, 5, 0], [170017, 1, 5, 1]]
+    assert noise_seeds(1, 5, 2) != noise_seeds(1, 6, 2)
+    world = World("one_obstacle", noise=DEFAULT_NOISE)
+    rows = np.zeros(50, dtype=np.uint32)
+    one = drive_noisy(world, rows, 60, 4, noise_seeds(1, 0, 1)[0], 4)
+    assert one == drive_noisy(world, rows, 60, 4, noise_seeds(1, 0, 1)[0], 4)  # the same seed, the same run
+    assert isinstance(one, NoisyRun) and one.clean_legs + one.failed_legs <= 4
+
+
+def test_records_average_every_run_and_accept_only_clean_records():
+    rec = Records()
+    clean = NoisyRun(3.9, 3, 0, 100, None, frozenset(), frozenset())
+    bad = NoisyRun(1.5, 1, 2, 80, 17, frozenset(), frozenset())
+    rec.add("a", clean)
+    rec.add("a", clean)
+    assert rec.accepted("a", 2) and not rec.accepted("a", 3)
+    rec.add("a", bad)
+    assert rec.score("a") == pytest.approx((3.9 * 2 + 1.5) / 3)
+    assert not rec.accepted("a", 3)
+    assert Records(json.loads(json.dumps(rec.to_dict()))).summary("a") == rec.summary("a")
+    with pytest.raises(ValueError, match="trials"):
+        NoisyStage(trials=-1)
+
+
+def test_the_noisy_stage_follows_the_noise_free_one_and_is_counted(tmp_path):
+    stage = NoisyStage(trials=2, accept_runs=4)
+    plain = run_offline(1, generations_cap=60, out=tmp_path / "plain", **SMALL)
+    noisy = run_offline(1, generations_cap=60, out=tmp_path / "noisy", noisy=stage, **SMALL)
+    n = noisy["noisy_stage"]
+    assert plain["reached_all_targets"] and noisy["reached_all_targets"] and n["accepted"]
+    assert n["from_generation"] == plain["generations"] + 1
+    assert noisy["generations"] == plain["generations"] + n["generations"] and n["generations"] >= 2
+    assert noisy["interactions"] == plain["interactions"] + n["interactions"] > plain["interactions"]
+    assert n["noisy_runs"] >= 4 and n["noisy_clean_runs"] == n["noisy_runs"]
+    assert noisy["config"]["noisy_stage"] == stage.to_dict() and "noisy_stage" not in plain["config"]
+    history = json.loads((tmp_path / "noisy" / "history.json").read_text())
+    assert [h.get("stage", 1) for h in history].count(2) == n["generations"]
+    assert len(noisy["transfer"]["targets_without_crash"]) == 2
+
+
+def test_the_noisy_stage_resumes_bit_for_bit_and_pool_equals_serial(tmp_path):
+    stage = NoisyStage(trials=2, accept_runs=4)
+    straight = run_offline(2, generations_cap=60, out=tmp_path / "a", noisy=stage, **SMALL)
+    first = straight["noisy_stage"]["from_generation"]
+
+    class Stop(Exception):
+        pass
+
+    def stop(entry):
+        if entry["generation"] == first:
+            raise Stop
+
+    with pytest.raises(Stop):
+        run_offline(2, generations_cap=60, out=tmp_path / "b", noisy=stage, on_generation=stop, **SMALL)
+    resumed = run_offline(2, generations_cap=60, out=tmp_path / "b", noisy=stage, resume=True, **SMALL)
+    pooled = run_offline(2, generations_cap=60, out=tmp_path / "c", noisy=stage, workers=2, **SMALL)
+    volatile = ("wall_time_s", "workers", "simulated_interactions")
+    for other in (resumed, pooled):
+        assert {k: v for k, v in other.items() if k not in volatile} == \
+            {k: v for k, v in straight.items() if k not in volatile}
+
+
+def test_the_race_keeps_the_champion_unless_the_challenger_wins_again():
+    from cosim.offline_noisy import _drive_one, noisy_generation
+    from ga.operators import random_population
+
+    pop = random_population(np.random.default_rng(3), 6)
+    calls, raced = [], 0
+
+    def run_map(fn, tasks):
+        calls.append(len(tasks))
+        return [_drive_one(t) for t in tasks]
+
+    for generation in range(6):
+        records = Records()
+        stage = NoisyStage(trials=1, race=3)
+        keys, runs, fitness, _, steps, _ = noisy_generation(run_map, pop, stage, records, 1, generation,
+                                                            "one_obstacle", 80, 6)
+        top = int(np.argmax(fitness))
+        first = max(range(6), key=lambda i: (runs[i][0].fitness, -i))
+        if first == 0:
+            assert calls[-1] == 6 and records.data[keys[0]][0] == 1  # no race
+            continue
+        raced += 1
+        assert calls[-2:] == [6, 6] and records.data[keys[0]][0] == 1 + 3 == records.data[keys[first]][0]
+        raced_champion = records.data[keys[0]][2] - runs[0][0].fitness
+        raced_challenger = records.data[keys[first]][2] - runs[first][0].fitness
+        assert top == (first if raced_challenger > raced_champion else 0)
+        assert steps > sum(r[0].steps for r in runs)  # the race's runs are counted
+    assert raced >= 2
+
+
+def test_the_budget_ends_the_noisy_stage(tmp_path):
+    cfg = dict(SMALL, arena="one_obstacle", n_targets=8, max_leg_steps=80)
+    s = run_offline(1, generations_cap=400, out=tmp_path, noisy=NoisyStage(trials=1, accept_runs=1000, budget=3000),
+                    **cfg)
+    n = s["noisy_stage"]
+    assert not n["accepted"] and 3000 <= n["interactions"] and n["generations"] >= 1
+    assert s["generations"] < 400
+
+
+def test_table_key_is_the_truth_table():
+    rows = np.zeros(50, dtype=np.uint32)
+    assert table_key(rows) == table_key(rows.copy()) and len(table_key(rows)) == 16
