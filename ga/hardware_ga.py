@@ -287,20 +287,30 @@ def first_best(scores) -> int:
 # -- cycle count of the engine ---------------------------------------------------------------------
 
 
+# The engine's pipeline (hdl.learner): a bred row reaches the lane's shadow ROW_LATENCY cycles
+# after its draw (the lane's registered bank address, the bank's synchronous read, the banks'
+# registered group multiplexer); a finished evaluation reaches the running best and the score
+# replicas RESULT_LATENCY cycles after the evaluator's done (the lanes' registered result bus).
+ROW_LATENCY = 3
+RESULT_LATENCY = 1
+
+
 def slot_cycles(n_states: int, tournament: int) -> int:
     """Cycles C of one child slot: selection (2T + 1 draws, one fitness read each) then breeding
-    (50 rows, one row-bank read each, one cycle of read latency; the last row may be written in
-    the cycle of the start) must fit before the start in the slot's last cycle, and the previous
-    evaluation must be over by then (the evaluator is ready again N + 2 cycles after the cycle
-    of its start): C = max(N + 2, 2T + 52)."""
-    return max(n_states + 2, 2 * tournament + 1 + N_ROWS + 1)
+    (50 rows, one row-bank read each, ROW_LATENCY cycles from a row's draw to its write into the
+    lane's shadow; the last row may be written in the cycle of the start) must fit before the
+    start in the slot's last cycle, and the previous evaluation must be over by then (the
+    evaluator is ready again N + 2 cycles after the cycle of its start):
+    C = max(N + 2, 2T + 1 + 50 + ROW_LATENCY) = max(N + 2, 2T + 54)."""
+    return max(n_states + 2, 2 * tournament + 1 + N_ROWS + ROW_LATENCY)
 
 
 def pass_cycles(n_states: int, config: HardwareGAConfig) -> int:
     """Clock cycles of one pass of ``hdl.learner.Learner``: ``config.slots`` slots of breeding
     (slot s's children evaluate during slot s + 1), one more slot for the last evaluations, and
-    the lanes' stagger (lane j runs j cycles behind lane 0): L cycles of drain."""
-    return (config.slots + 1) * slot_cycles(n_states, config.tournament) + config.lanes
+    the lanes' stagger (lane j runs j cycles behind lane 0) and the result bus: L + RESULT_LATENCY
+    cycles of drain."""
+    return (config.slots + 1) * slot_cycles(n_states, config.tournament) + config.lanes + RESULT_LATENCY
 
 
 def learn_cycles(n_states: int, config: HardwareGAConfig, generations: int) -> int:

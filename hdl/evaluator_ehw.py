@@ -133,6 +133,12 @@ class EvaluatorEHW(wiring.Component):
         one is evaluated. False: the rows go straight into the active configuration and are
         accepted only when ``ready`` (saves k x 19 = 950 flip-flops, e.g. for a small FPGA;
         loading then costs 50 cycles more per controller).
+    lookahead : bool
+        False (default): one AND-OR array, on the state issued this cycle (the entry's next state
+        or the next untested state, whichever the entry decides). True: two arrays, one on each
+        candidate, and the decision picks the motion: the same counts, cycle for cycle, with the
+        RAM's read data no longer in series with the array (the learner's lanes; about 450 LUT4
+        more).
 
     Ports
     -----
@@ -166,13 +172,17 @@ class EvaluatorEHW(wiring.Component):
         |S|.
     """
 
-    def __init__(self, k: int = N_ROWS, double_buffer: bool = True, distance_rule: str = DEFAULT_DISTANCE_RULE):
+    def __init__(self, k: int = N_ROWS, double_buffer: bool = True, distance_rule: str = DEFAULT_DISTANCE_RULE,
+                 lookahead: bool = False):
         self.k = _check_positive("k", k)
         self.distance_rule = distance_rule
         self.distances = motion_distances(distance_rule)  # dist[a]; refuses an unknown rule
         if not isinstance(double_buffer, bool):
             raise TypeError(f"double_buffer must be a bool, got {double_buffer!r}")
         self.double_buffer = double_buffer
+        if not isinstance(lookahead, bool):
+            raise TypeError(f"lookahead must be a bool, got {lookahead!r}")
+        self.lookahead = lookahead
         self.row_bits = ROW_BITS
         super().__init__({
             "row": In(RowWriteSignature(self.k)),
@@ -254,15 +264,21 @@ class EvaluatorEHW(wiring.Component):
         m.d.comb += [
             x.eq(Mux(follow, s2, pick_state)),
             issue.eq(follow | pick_any),
-            array.arch.eq(arch),
-            array.x.eq(x),
         ]
-        reflex_motion = Array(Const(int(a), N_OUTPUTS) for a in REFLEX_MOTION)[x[SECTOR_SHIFT:]]
-        use_reflex = reflex_r & ((x & OBSTACLE_MASK) == 0)
-        m.d.comb += [
-            motion.eq(Mux(use_reflex, reflex_motion, array.y)),
-            rd.addr.eq(Cat(motion, x)),
-        ]
+        reflex_table = Array(Const(int(a), N_OUTPUTS) for a in REFLEX_MOTION)
+
+        def motion_of(state, arr):
+            """The motion in ``state``: the reflex's (outside obstacles, when on) or ``arr``'s."""
+            m.d.comb += [arr.arch.eq(arch), arr.x.eq(state)]
+            use_reflex = reflex_r & ((state & OBSTACLE_MASK) == 0)
+            return Mux(use_reflex, reflex_table[state[SECTOR_SHIFT:]], arr.y)
+
+        if self.lookahead:  # both candidates' motions, then the entry's decision picks one
+            ahead = m.submodules.array_next = AndOrArray(n=N_INPUTS, m=N_OUTPUTS, k=k)
+            m.d.comb += motion.eq(Mux(follow, motion_of(s2, ahead), motion_of(pick_state, array)))
+        else:
+            m.d.comb += motion.eq(motion_of(x, array))
+        m.d.comb += rd.addr.eq(Cat(motion, x))
         step_distance = Array(Const(int(d), DISTANCE_BITS) for d in self.distances)[cur_motion]
 
         # -- accumulators (results are latched at the end) -------------------------------------------

@@ -11,30 +11,41 @@ Datapath
   the current buffer and write the children into the other one.
 - ``lane[j]`` (:class:`Lane`): an ``EvaluatorEHW`` (its own copy of the world-model RAM, state
   set and trace engine: every model write goes to every lane, so the copies stay identical), the
-  lane's four xorshift32 generators, a replica of the score RAM (both buffers: the previous
+  lane's seven xorshift32 generators, a replica of the score RAM (both buffers: the previous
   pass's scores for its tournaments, this pass's being written), the tournament comparator and
   the row mutation datapath.
+- ``group[g]`` (g = 0..4, ``BANK_GROUP`` = 10 banks each): between the lanes and the banks, per
+  lane, a register of the lane's bank request (address), one of its bank write and one of the
+  row its bank read gave (zero unless that row is in the group). So a lane is wired to five
+  groups, not to the 50 banks (its row arrives as the OR of five 19-bit registers, not through a
+  50:1 multiplexer), and every path between a lane and a bank starts or ends at a register:
+  the cost is ``ga.hardware_ga.ROW_LATENCY`` = 3 cycles from a row's draw to its shadow write.
 - A global slot counter (``tau`` in 0..C-1, ``slot`` in 0..S) whose value reaches lane j through
-  j registers: lane j runs j cycles behind lane 0. A lane reads bank r in the cycle it breeds its
+  j registers: lane j runs j cycles behind lane 0. A lane asks bank r in the cycle it draws its
   row r, so two lanes never ask the same bank in one cycle (their rows differ by their lane
-  distance, less than C); the same holds for the bank writes one cycle later, for the score
-  writes and for the running best (one lane finishes per cycle, in the children's order).
+  distance, less than C); the same holds for the bank writes, for the score writes and for the
+  running best (one lane finishes per cycle, in the children's order).
+- The result bus (the finishing lane's index and counts) is registered before the score, the
+  running best and the score replicas (``ga.hardware_ga.RESULT_LATENCY`` = 1 cycle of drain).
 
-Timing of a slot (lane time tau; C = max(N + 2, 2T + 52), ``ga.hardware_ga.slot_cycles``)
+Timing of a slot (lane time tau; C = max(N + 2, 2T + 54), ``ga.hardware_ga.slot_cycles``)
 ---------------------------------------------------------------------------------------
 - tau = 0 .. 2T: one ``SEL`` draw a cycle; draws 0 .. 2T-1 are contestants (score replica read,
   compared one cycle later: first of tournament a, then of b), draw 2T the crossover decision.
-- tau = 2T+1 .. 2T+50: row r = tau - 2T - 1: the six row generators draw, the parent (a or b)
-  is chosen and bank r is read; one cycle later the mutated row goes to the lane's evaluator
-  (its shadow configuration) and to bank r of the next buffer.
+- tau = 2T+1 .. 2T+50: row r = tau - 2T - 1 (stage 1): the six row generators draw, the parent
+  (a or b) is chosen, the mutation command is computed from the draws, and the request goes to
+  the group of bank r; stage 2: the group register drives bank r's address; stage 3: the bank's
+  data goes into the group's register for that lane; stage 4 (tau = r + 2T + 4): the lane
+  mutates the row and writes it into its evaluator's shadow configuration, and the group
+  register latches the write, which lands in bank r of the next buffer in stage 5.
 - tau = C - 1: start the evaluator on the child (its rows all in the shadow). It runs N + 1
   cycles, during the next slot, while the next child is bred; its counts are scored and written
-  to every score replica (the next buffer) and into the running best when it finishes.
+  to every score replica (the next buffer) and into the running best one cycle after it finishes.
 
-A pass is S = ceil(P / L) slots of breeding, one slot more for the last evaluations and L cycles
-for the lanes behind: ``(S + 1) C + L`` cycles (``ga.hardware_ga.pass_cycles``, checked against
-this RTL in tests/test_learner.py). Between passes the buffers swap and the best of the pass
-becomes the next pass's elite.
+A pass is S = ceil(P / L) slots of breeding, one slot more for the last evaluations and
+L + 1 cycles for the lanes behind and the result bus: ``(S + 1) C + L + 1`` cycles
+(``ga.hardware_ga.pass_cycles``, checked against this RTL in tests/test_learner.py). Between
+passes the buffers swap and the best of the pass becomes the next pass's elite.
 
 Host protocol (all in ``Idle``, ``ready`` high)
 ------------------------------------------------
@@ -64,7 +75,8 @@ from ga.operators import CONTRADICTION, DONT_CARE, NEGATIVE, POSITIVE
 from hdl.evaluator_ehw import EvaluatorEHW
 from hdl.ports import COUNT_BITS, DISTANCE_BITS, ModelWriteSignature, row_addr_bits
 
-TAU_BITS = 10  # C <= max(258, 2T + 52) < 1024 for T <= 480
+TAU_BITS = 10  # C <= max(258, 2T + 54) < 1024 for T <= 480
+BANK_GROUP = 10  # population banks per group register (5 groups of 10 rows)
 ROW_INDEX_BITS = row_addr_bits(N_ROWS)
 # The evaluator's model-side inputs, broadcast from the learner to every lane's evaluator.
 _MODEL_MEMBERS = ("state", "motion", "next", "crash", "valid", "we")  # of ModelWriteSignature
@@ -120,7 +132,7 @@ class Lane(wiring.Component):
             "seed": In(32), "seed_we": In(1),
             "score_addr": In(ib + 1), "score_data": In(hg.SCORE_BITS), "score_we": In(1),
             "rd_en": Out(1), "rd_row": Out(ROW_INDEX_BITS), "rd_addr": Out(ib + 1),
-            "data_row": Out(ROW_INDEX_BITS), "rd_data": In(ROW_BITS),
+            "data_en": Out(1), "data_row": Out(ROW_INDEX_BITS), "rd_data": In(ROW_BITS),
             "wr_en": Out(1), "wr_row": Out(ROW_INDEX_BITS), "wr_addr": Out(ib + 1),
             "wr_data": Out(ROW_BITS),
             "result_valid": Out(1), "result_index": Out(ib),
@@ -135,7 +147,8 @@ class Lane(wiring.Component):
     def elaborate(self, platform):
         m = Module()
         cfg, ib, T, P, L = self.config, self.ib, self.config.tournament, self.config.population, self.config.lanes
-        ev = m.submodules.evaluator = EvaluatorEHW(double_buffer=True, distance_rule=self.distance_rule)
+        ev = m.submodules.evaluator = EvaluatorEHW(double_buffer=True, distance_rule=self.distance_rule,
+                                                   lookahead=True)
         _broadcast(m, self, ev)
         m.d.comb += [self.n_states.eq(ev.n_states), self.ready.eq(ev.ready)]
 
@@ -196,68 +209,80 @@ class Lane(wiring.Component):
         with m.If(sel_step & (tau == 2 * T)):
             m.d.sync += cross.eq(field < cfg.cross_threshold)
 
-        # -- breeding, stage 1: draw, choose the parent, read bank r --------------------------------
+        # -- breeding, stage 1: draw, choose the parent, ask bank r; the mutation command -----------
+        # (ROW_LATENCY = 3 cycles to the shadow: the banks' group registers latch the address
+        # (stage 2), the bank reads (its data in stage 3), the group registers latch the data
+        # (stage 4: mutated and written into the shadow; the bank write is latched by the group
+        # registers and lands in stage 5).)
         row = Signal(ROW_INDEX_BITS)
         m.d.comb += row.eq(tau - row_start)
-        w0 = draws[hg.ROW0]
-        take_b = cross & ~plain & w0[hg.TAKE_B_BIT]
+        r0, r1, r2, r3, r4, r5 = (draws[g] for g in hg.ROW_GENERATORS)
+        take_b = cross & ~plain & r0[hg.TAKE_B_BIT]
         source = Mux(self.copy_mode, child, Mux(elite, self.best_prev, Mux(take_b, par_b, par_a)))
         m.d.comb += [
             self.rd_en.eq(row_step),
             self.rd_row.eq(row),
             self.rd_addr.eq(Cat(source[:ib], self.cur_buf)),
         ]
-        r0, r1, r2, r3, r4, r5 = (Signal(32, name=f"r{k}") for k in range(len(hg.ROW_GENERATORS)))
-        row_r = Signal(ROW_INDEX_BITS)
-        stage2 = Signal()
-        plain_r = Signal()
-        m.d.sync += [r.eq(draws[g]) for r, g in zip((r0, r1, r2, r3, r4, r5), hg.ROW_GENERATORS)]
-        m.d.sync += [row_r.eq(row), stage2.eq(row_step), plain_r.eq(plain)]
-        m.d.comb += self.data_row.eq(row_r)
+        # the mutation command (ga.hardware_ga._mutate_rows), from this row's draws
+        fresh_fields = []
+        for i in range(N_INPUTS):
+            byte = (r4 if i < 4 else r5)[8 * (i % 4):8 * (i % 4) + 8]
+            negative = r3[hg.FRESH_POLARITY_SHIFT + i]
+            fresh_fields.append(Mux(byte < cfg.connect_threshold, Cat(~negative, negative), DONT_CARE))
+        cmd = {
+            "lit_event": ~plain & (r0[hg.FIELD16_SHIFT:] < cfg.literal_threshold),
+            "lit_index": r0[hg.LITERAL_INDEX_SHIFT:hg.LITERAL_INDEX_SHIFT + 3],
+            "polarity": r0[hg.POLARITY_BIT],
+            "to_dc": r0[hg.TO_DC_SHIFT:hg.TO_DC_SHIFT + 8] < cfg.to_dc_threshold,
+            "out_event": ~plain & (r1[hg.FIELD16_SHIFT:] < cfg.output_threshold),
+            "out_bit": (r1[:8] * 3)[8:10],
+            "sw_event": ~plain & (r2[hg.FIELD16_SHIFT:] < cfg.switch_threshold),
+            "code": ((r2[:8] * 7)[8:11] + 1)[:N_OUTPUTS],
+            "rep_event": ~plain & (r3[hg.FIELD16_SHIFT:] < cfg.replace_threshold),
+            "fresh": Cat(*fresh_fields, ((r3[:8] * 7)[8:11] + 1)[:N_OUTPUTS]),
+        }
+        # the row's pipeline: stage k holds (valid, row, command) of the row drawn k - 1 cycles ago
+        stages = [(row_step, row, cmd)]
+        for k in (2, 3, 4):
+            valid_k = Signal(name=f"s{k}_valid")
+            row_k = Signal(ROW_INDEX_BITS, name=f"s{k}_row")
+            cmd_k = {}
+            for key, value in stages[-1][2].items():
+                cmd_k[key] = Signal(len(value), name=f"s{k}_{key}")
+                m.d.sync += cmd_k[key].eq(value)
+            m.d.sync += [valid_k.eq(stages[-1][0]), row_k.eq(stages[-1][1])]
+            stages.append((valid_k, row_k, cmd_k))
+        m.d.comb += [self.data_en.eq(stages[2][0]), self.data_row.eq(stages[2][1])]
+        stage4, row_r, c = stages[3]
 
-        # -- breeding, stage 2: mutate the row (ga.hardware_ga._mutate_rows), write it -------------
+        # -- breeding, stage 4: mutate the row (ga.hardware_ga._mutate_rows), write it -------------
         word = self.rd_data
-        lit_event = ~plain_r & (r0[hg.FIELD16_SHIFT:] < cfg.literal_threshold)
-        lit_index = r0[hg.LITERAL_INDEX_SHIFT:hg.LITERAL_INDEX_SHIFT + 3]
-        polarity = r0[hg.POLARITY_BIT]
-        to_dc = r0[hg.TO_DC_SHIFT:hg.TO_DC_SHIFT + 8] < cfg.to_dc_threshold
         fields = []
         for i in range(N_INPUTS):
             old = word[2 * i:2 * i + 2]
             new = Signal(2, name=f"new_field{i}")
             with m.Switch(old):
                 with m.Case(DONT_CARE):
-                    m.d.comb += new.eq(Mux(polarity, NEGATIVE, POSITIVE))
+                    m.d.comb += new.eq(Mux(c["polarity"], NEGATIVE, POSITIVE))
                 with m.Case(CONTRADICTION):
                     m.d.comb += new.eq(DONT_CARE)
                 with m.Case(POSITIVE):
-                    m.d.comb += new.eq(Mux(to_dc, DONT_CARE, NEGATIVE))
+                    m.d.comb += new.eq(Mux(c["to_dc"], DONT_CARE, NEGATIVE))
                 with m.Case(NEGATIVE):
-                    m.d.comb += new.eq(Mux(to_dc, DONT_CARE, POSITIVE))
-            fields.append(Mux(lit_event & (lit_index == i), new, old))
+                    m.d.comb += new.eq(Mux(c["to_dc"], DONT_CARE, POSITIVE))
+            fields.append(Mux(c["lit_event"] & (c["lit_index"] == i), new, old))
         outputs = Signal(N_OUTPUTS)
-        out_event = ~plain_r & (r1[hg.FIELD16_SHIFT:] < cfg.output_threshold)
-        out_bit = (r1[:8] * 3)[8:10]
-        m.d.comb += outputs.eq(word[OUTPUT_SHIFT:] ^ Cat(*[out_event & (out_bit == b) for b in range(N_OUTPUTS)]))
-        sw_event = ~plain_r & (r2[hg.FIELD16_SHIFT:] < cfg.switch_threshold)
-        code = ((r2[:8] * 7)[8:11] + 1)[:N_OUTPUTS]
-        switched = Mux(outputs != 0, 0, code)
-        rep_event = ~plain_r & (r3[hg.FIELD16_SHIFT:] < cfg.replace_threshold)
-        fresh_fields = []
-        for i in range(N_INPUTS):
-            byte = (r4 if i < 4 else r5)[8 * (i % 4):8 * (i % 4) + 8]
-            negative = r3[hg.FRESH_POLARITY_SHIFT + i]
-            fresh_fields.append(Mux(byte < cfg.connect_threshold, Cat(~negative, negative), DONT_CARE))
-        fresh = Cat(*fresh_fields, ((r3[:8] * 7)[8:11] + 1)[:N_OUTPUTS])
+        m.d.comb += outputs.eq(word[OUTPUT_SHIFT:] ^ Cat(*[c["out_event"] & (c["out_bit"] == b)
+                                                          for b in range(N_OUTPUTS)]))
+        switched = Mux(outputs != 0, 0, c["code"])
         mutated = Signal(ROW_BITS)
-        m.d.comb += mutated.eq(Mux(rep_event, fresh, Cat(*fields, Mux(sw_event, switched, outputs))))
-        child_r = Signal.like(child)
-        child_valid_r = Signal()
-        m.d.sync += [child_r.eq(child), child_valid_r.eq(child_valid)]
+        m.d.comb += mutated.eq(Mux(c["rep_event"], c["fresh"],
+                                   Cat(*fields, Mux(c["sw_event"], switched, outputs))))
         m.d.comb += [
-            ev.row.addr.eq(row_r), ev.row.data.eq(mutated), ev.row.we.eq(stage2),
-            self.wr_en.eq(stage2 & child_valid_r), self.wr_row.eq(row_r),
-            self.wr_addr.eq(Cat(child_r[:ib], ~self.cur_buf)), self.wr_data.eq(mutated),
+            ev.row.addr.eq(row_r), ev.row.data.eq(mutated), ev.row.we.eq(stage4),
+            self.wr_en.eq(stage4 & child_valid), self.wr_row.eq(row_r),
+            self.wr_addr.eq(Cat(child[:ib], ~self.cur_buf)), self.wr_data.eq(mutated),
         ]
 
         # -- the escape: the child's array motion in avoid_state, one row per cycle as it streams -----
@@ -266,7 +291,7 @@ class Lane(wiring.Component):
         motion_acc = Signal(N_OUTPUTS)
         motion_next = Signal(N_OUTPUTS)
         m.d.comb += motion_next.eq(motion_acc)
-        with m.If(stage2):
+        with m.If(stage4):
             m.d.comb += motion_next.eq(Mux(row_r == 0, 0, motion_acc) | Mux(fires, mutated[OUTPUT_SHIFT:], 0))
         m.d.sync += motion_acc.eq(motion_next)
 
@@ -341,7 +366,8 @@ class Learner(wiring.Component):
         n = lanes[0].n_states
         m.d.comb += self.n_states.eq(n)
         c_last = Signal(TAU_BITS)
-        m.d.comb += c_last.eq(Mux(n + 2 > 2 * cfg.tournament + 52, n + 1, 2 * cfg.tournament + 51))
+        breed = 2 * cfg.tournament + 1 + N_ROWS + hg.ROW_LATENCY  # ga.hardware_ga.slot_cycles
+        m.d.comb += c_last.eq(Mux(n + 2 > breed, n + 1, breed - 1))
 
         # -- pass constants ----------------------------------------------------------------------
         cur_buf = Signal()
@@ -367,30 +393,58 @@ class Learner(wiring.Component):
             stage = delayed
 
         # -- banks: the lanes while running, the host otherwise -----------------------------------------
+        # The banks come in groups of BANK_GROUP rows; each group has, per lane, a register of the
+        # lane's bank request (address), of its bank write and of the row its bank read gave
+        # (zero unless the row is in the group): a lane is wired to the groups (a few words each
+        # way), not to all 50 banks, and every path between a lane and a bank has a register.
         host_row_r = Signal(ROW_INDEX_BITS)
         m.d.sync += host_row_r.eq(self.pop_row)
         bank_data = Array(rd.data for rd, _ in banks)
         m.d.comb += self.pop_rdata.eq(bank_data[host_row_r])
-        for r, (rd, wr) in enumerate(banks):
-            rd_addr = Const(0, ib + 1)
-            wr_en, wr_addr, wr_data = Const(0, 1), Const(0, ib + 1), Const(0, ROW_BITS)
-            for lane in lanes:
-                asks = lane.rd_en & (lane.rd_row == r)
-                rd_addr = rd_addr | Mux(asks, lane.rd_addr, 0)
-                writes = lane.wr_en & (lane.wr_row == r)
-                wr_en = wr_en | writes
-                wr_addr = wr_addr | Mux(writes, lane.wr_addr, 0)
-                wr_data = wr_data | Mux(writes, lane.wr_data, 0)
-            host = ~running
-            host_we = self.pop_we & (self.pop_row == r) & self.ready
-            m.d.comb += [
-                rd.addr.eq(Mux(host, Cat(self.pop_index, cur_buf), rd_addr)),
-                wr.addr.eq(Mux(host, Cat(self.pop_index, cur_buf), wr_addr)),
-                wr.data.eq(Mux(host, self.pop_data, wr_data)),
-                wr.en.eq(Mux(host, host_we, wr_en)),
-            ]
-        for lane in lanes:
-            m.d.comb += lane.rd_data.eq(bank_data[lane.data_row])
+        host = ~running
+        group_rows = [0] * L
+        for base in range(0, N_ROWS, BANK_GROUP):
+            rows = range(base, min(base + BANK_GROUP, N_ROWS))
+            g = base // BANK_GROUP
+
+            def in_group(row_index, rows=rows):
+                return (row_index >= rows[0]) & (row_index <= rows[-1])
+
+            reqs, writes = [], []
+            for j, lane in enumerate(lanes):
+                req = (Signal(name=f"g{g}_rd_en{j}"), Signal(ROW_INDEX_BITS, name=f"g{g}_rd_row{j}"),
+                       Signal(ib + 1, name=f"g{g}_rd_addr{j}"))
+                wreq = (Signal(name=f"g{g}_wr_en{j}"), Signal(ROW_INDEX_BITS, name=f"g{g}_wr_row{j}"),
+                        Signal(ib + 1, name=f"g{g}_wr_addr{j}"), Signal(ROW_BITS, name=f"g{g}_wr_data{j}"))
+                m.d.sync += [req[0].eq(lane.rd_en & in_group(lane.rd_row)), req[1].eq(lane.rd_row),
+                             req[2].eq(lane.rd_addr),
+                             wreq[0].eq(lane.wr_en & in_group(lane.wr_row)), wreq[1].eq(lane.wr_row),
+                             wreq[2].eq(lane.wr_addr), wreq[3].eq(lane.wr_data)]
+                reqs.append(req)
+                writes.append(wreq)
+                got = Signal(ROW_BITS, name=f"g{g}_data{j}")
+                sel = Array(banks[r][0].data for r in rows)[(lane.data_row - base)[:len(rows).bit_length()]]
+                m.d.sync += got.eq(Mux(lane.data_en & in_group(lane.data_row), sel, 0))
+                group_rows[j] = group_rows[j] | got
+            for r in rows:
+                rd, wr = banks[r]
+                rd_addr = Const(0, ib + 1)
+                wr_en, wr_addr, wr_data = Const(0, 1), Const(0, ib + 1), Const(0, ROW_BITS)
+                for (en, row_i, addr), (wen, wrow, waddr, wdata) in zip(reqs, writes):
+                    rd_addr = rd_addr | Mux(en & (row_i == r), addr, 0)
+                    hit = wen & (wrow == r)
+                    wr_en = wr_en | hit
+                    wr_addr = wr_addr | Mux(hit, waddr, 0)
+                    wr_data = wr_data | Mux(hit, wdata, 0)
+                host_we = self.pop_we & (self.pop_row == r) & self.ready
+                m.d.comb += [
+                    rd.addr.eq(Mux(host, Cat(self.pop_index, cur_buf), rd_addr)),
+                    wr.addr.eq(Mux(host, Cat(self.pop_index, cur_buf), wr_addr)),
+                    wr.data.eq(Mux(host, self.pop_data, wr_data)),
+                    wr.en.eq(Mux(host, host_we, wr_en)),
+                ]
+        for j, lane in enumerate(lanes):
+            m.d.comb += lane.rd_data.eq(group_rows[j])
 
         # -- results: score, score replicas, running best -------------------------------------------
         d = MAX_MOTION_DISTANCE_MM
@@ -404,6 +458,12 @@ class Learner(wiring.Component):
             res_c = res_c | Mux(v, lane.crashes, 0)
             res_l = res_l | Mux(v, lane.loops, 0)
             res_d = res_d | Mux(v, lane.distance, 0)
+        # the result bus, registered (RESULT_LATENCY): one lane finishes per cycle at most
+        res = [(res_valid, Signal(name="res_valid_q")), (res_eligible, Signal(name="res_eligible_q")),
+               (res_index, Signal(ib, name="res_index_q")), (res_c, Signal(COUNT_BITS, name="res_c_q")),
+               (res_l, Signal(COUNT_BITS, name="res_l_q")), (res_d, Signal(DISTANCE_BITS, name="res_d_q"))]
+        m.d.sync += [q.eq(v) for v, q in res]
+        res_valid, res_eligible, res_index, res_c, res_l, res_d = (q for _, q in res)
         res_score = Signal(hg.SCORE_BITS)
         m.d.comb += res_score.eq(5 * d * (n - res_c) + 4 * d * (n - res_l) + res_d)
         for lane in lanes:
@@ -426,7 +486,7 @@ class Learner(wiring.Component):
         for lane in lanes:
             lanes_ready = lanes_ready & lane.ready
         passes_left = Signal(16)
-        drain = Signal(range(L + 1))
+        drain = Signal(range(L + hg.RESULT_LATENCY + 1))
         with m.If(self.ready & self.pop_we):
             m.d.sync += self.evaluated.eq(0)
         m.d.sync += self.done.eq(0)
@@ -455,7 +515,7 @@ class Learner(wiring.Component):
                 # the lanes behind lane 0 finish their last slot
                 m.d.comb += [self.busy.eq(1), running.eq(1)]
                 m.d.sync += drain.eq(drain + 1)
-                with m.If(drain == L - 1):
+                with m.If(drain == L + hg.RESULT_LATENCY - 1):
                     m.d.sync += [cur_buf.eq(~cur_buf), best_prev.eq(self.best_index),
                                  self.evaluated.eq(1), passes_left.eq(passes_left - 1)]
                     with m.If(passes_left == 1):
