@@ -51,6 +51,9 @@ HYPER = {
 TUNED: dict[tuple[str, str], dict] = {
     ("dqn", "shaped"): {"learning_rate": 0.001, "exploration_fraction": 0.02},  # median 7,888
     ("ppo", "shaped"): {"learning_rate": 0.001},  # median 13,596
+    ("dqn", "unshaped"): {"learning_rate": 0.001, "exploration_fraction": 0.05},  # median 39,464
+    # every PPO unshaped point was capped at 100,000 on all three seeds (a tie: the first point)
+    ("ppo", "unshaped"): {"learning_rate": 0.0003},  # median 100,000 (capped)
 }
 
 
