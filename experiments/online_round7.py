@@ -26,7 +26,11 @@ population's truth tables. Variants:
   its own), and a controller's fitness is the ``agg`` (mean or min) of its SPEC fitness on the
   board's model and on those. On a board this is the host re-sending observations of outcomes the
   robot met (``observe``), evaluating, and sending the latest ones back; here the reference
-  evaluator is called on the drawn models directly.
+  evaluator is called on the drawn models directly;
+- ``adaptive``: *when a phase starts*: the one-round cycle stop (``loop_cycles`` 1) waits for a
+  second round of a cycle unless the cycle runs through an obstacle (state, motion) of a loop the
+  robot was stopped in before in its lifetime (a new loop may dissolve in the noise, a known one
+  is cut after one round).
 
 Each lifetime appends one JSON line (figures, phase reasons, the failure classes below) to
 ``--out``; a (variant, seed, budget, settings, params) already there is not run again.
@@ -53,13 +57,14 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from cosim import online as online_mod  # noqa: E402
+from cosim.failures import Cycles  # noqa: E402
 from cosim.online import OnlineConfig, OnlineRun, make_run  # noqa: E402
 from experiments.online_round6 import cell, lost, seeds_of  # noqa: E402
 from ga.motions import OBSTACLE_MASK  # noqa: E402
 from ga.truth_table import truth_tables  # noqa: E402
 
 DEFAULT_OUT = Path("build/experiments/round7.jsonl")
-VARIANTS = ("default", "reach", "unknown", "reach_unknown", "resample")
+VARIANTS = ("default", "reach", "unknown", "reach_unknown", "resample", "adaptive")
 DEFAULT_PARAMS = {"starts": 4, "w_cycle": 1.0, "w_crash": 1.0, "w_unknown": 0.05, "min_visits": 3,
                   "horizon": 0, "samples": 4, "history": 8, "agg": "mean"}
 ENDS = ("unknown", "crash", "cycle", "free", "long")
@@ -97,6 +102,35 @@ def trace_ends(tables: np.ndarray, model, starts: np.ndarray, horizon: int) -> n
     return end
 
 
+def cycle_pairs(track) -> list:
+    """The (state, motion) pairs of the shortest simple cycle (2-8 pairs) back to the current
+    state, as ``cosim.failures.Cycles`` finds it; [] if none."""
+    w, now = list(track.pairs), track.state
+    for p in range(2, min(len(w), 8) + 1):
+        if w[-p][0] == now and len({s for s, _ in w[-p:]}) == p:
+            return w[-p:]
+    return []
+
+
+class AdaptiveCycles:
+    """``Cycles`` with two rounds, or one round when the cycle holds an obstacle pair of
+    ``known`` (the pairs of the earlier loop stops)."""
+
+    name, reason = "cycles", "loop"
+
+    def __init__(self, known: set, radius_mm: float):
+        self.known, self.one, self.two = known, Cycles(1, radius_mm), Cycles(2, radius_mm)
+
+    def reset(self) -> None:
+        pass
+
+    def observe(self, track) -> bool:
+        if self.two.observe(track):
+            return True
+        return self.one.observe(track) and any(
+            s & OBSTACLE_MASK and (s, a) in self.known for s, a in cycle_pairs(track))
+
+
 class Round7(OnlineRun):
     variant = "default"
     params = DEFAULT_PARAMS
@@ -112,6 +146,10 @@ class Round7(OnlineRun):
         self.penalised = 0  # learning phases in which the penalty changed the download
         self.history: dict[tuple[int, int], list[int]] = {}
         self.sample_rng = np.random.default_rng([self.config.seed, 7])
+        self.loop_pairs: set = set()
+        if self.variant == "adaptive":
+            self.detectors = [AdaptiveCycles(self.loop_pairs, self.config.loop_radius_mm)
+                              if isinstance(d, Cycles) else d for d in self.detectors]
 
     def step(self, motion, record=True):
         s, m = self.state, self.mirror
@@ -176,6 +214,8 @@ class Round7(OnlineRun):
 
     def learn(self, reason, steps, state, motion, detector=""):
         self.classify(reason, steps)
+        if reason == "loop":
+            self.loop_pairs.update(cycle_pairs(self.track))
         if self.variant == "resample":
             from ga.evaluator import evaluate_tables, fitness as spec_fitness
 
@@ -225,8 +265,8 @@ class Round7(OnlineRun):
 def run_one(variant: str, seed: int, budget: int, settings: dict, params: dict) -> dict:
     config = OnlineConfig(seed=seed, max_interactions=budget, **settings)
     base = make_run(config)
+    Round7.variant, Round7.params = variant, {**DEFAULT_PARAMS, **params}
     run = Round7(config, base.controller, base.evaluator)
-    run.variant, run.params = variant, {**DEFAULT_PARAMS, **params}
     t0, c0 = time.perf_counter(), time.process_time()
     run.run()
     s = run.summary()
