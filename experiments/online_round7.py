@@ -271,6 +271,7 @@ def run_one(variant: str, seed: int, budget: int, settings: dict, params: dict) 
     run.run()
     s = run.summary()
     classes = Counter(run.classes)
+    classes.update(f"{c}_in_free_space" for c, st in zip(run.classes, run.pre) if not st & OBSTACLE_MASK)
     return {"variant": variant, "seed": seed, "budget": budget, "settings": settings, "params": params,
             "targets": s["targets_reached"], "interactions": s["interactions"],
             "generations": s["generations"], "world_states": s["world_states"],
