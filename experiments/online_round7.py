@@ -30,7 +30,9 @@ population's truth tables. Variants:
 - ``adaptive``: *when a phase starts*: the one-round cycle stop (``loop_cycles`` 1) waits for a
   second round of a cycle unless the cycle runs through an obstacle (state, motion) of a loop the
   robot was stopped in before in its lifetime (a new loop may dissolve in the noise, a known one
-  is cut after one round).
+  is cut after one round);
+- ``leg2``: *when a phase starts*: two rounds for the first loop stop of a leg, one round for the
+  later ones of the same leg.
 
 Each lifetime appends one JSON line (figures, phase reasons, the failure classes below) to
 ``--out``; a (variant, seed, budget, settings, params) already there is not run again.
@@ -64,7 +66,7 @@ from ga.motions import OBSTACLE_MASK  # noqa: E402
 from ga.truth_table import truth_tables  # noqa: E402
 
 DEFAULT_OUT = Path("build/experiments/round7.jsonl")
-VARIANTS = ("default", "reach", "unknown", "reach_unknown", "resample", "adaptive")
+VARIANTS = ("default", "reach", "unknown", "reach_unknown", "resample", "adaptive", "leg2")
 DEFAULT_PARAMS = {"starts": 4, "w_cycle": 1.0, "w_crash": 1.0, "w_unknown": 0.05, "min_visits": 3,
                   "horizon": 0, "samples": 4, "history": 8, "agg": "mean"}
 ENDS = ("unknown", "crash", "cycle", "free", "long")
@@ -118,7 +120,7 @@ class AdaptiveCycles:
 
     name, reason = "cycles", "loop"
 
-    def __init__(self, known: set, radius_mm: float):
+    def __init__(self, known, radius_mm: float):
         self.known, self.one, self.two = known, Cycles(1, radius_mm), Cycles(2, radius_mm)
 
     def reset(self) -> None:
@@ -127,8 +129,11 @@ class AdaptiveCycles:
     def observe(self, track) -> bool:
         if self.two.observe(track):
             return True
-        return self.one.observe(track) and any(
-            s & OBSTACLE_MASK and (s, a) in self.known for s, a in cycle_pairs(track))
+        if not self.one.observe(track):
+            return False
+        if callable(self.known):  # leg2: one round once the leg has had a loop stop
+            return self.known()
+        return any(s & OBSTACLE_MASK and (s, a) in self.known for s, a in cycle_pairs(track))
 
 
 class Round7(OnlineRun):
@@ -147,8 +152,10 @@ class Round7(OnlineRun):
         self.history: dict[tuple[int, int], list[int]] = {}
         self.sample_rng = np.random.default_rng([self.config.seed, 7])
         self.loop_pairs: set = set()
-        if self.variant == "adaptive":
-            self.detectors = [AdaptiveCycles(self.loop_pairs, self.config.loop_radius_mm)
+        self.loop_leg = -1  # the targets reached at the last loop stop
+        if self.variant in ("adaptive", "leg2"):
+            known = self.loop_pairs if self.variant == "adaptive" else (lambda: self.loop_leg == self.targets)
+            self.detectors = [AdaptiveCycles(known, self.config.loop_radius_mm)
                               if isinstance(d, Cycles) else d for d in self.detectors]
 
     def step(self, motion, record=True):
@@ -216,6 +223,7 @@ class Round7(OnlineRun):
         self.classify(reason, steps)
         if reason == "loop":
             self.loop_pairs.update(cycle_pairs(self.track))
+            self.loop_leg = self.targets
         if self.variant == "resample":
             from ga.evaluator import evaluate_tables, fitness as spec_fitness
 
