@@ -113,3 +113,43 @@ def test_tuning_chooses_the_lowest_median_and_the_deep_grid_is_over_hyper():
         assert len(points) == {"dqn": 4, "ppo": 2}[method] and all(p.keys() == HYPER[method].keys() | deep.GRID[method].keys() for p in points)
         for shaping in ("shaped", "unshaped"):
             assert tuned_hyper(method, shaping) == {**HYPER[method], **TUNED.get((method, shaping), {})}
+
+
+def test_online_round7_runs_each_variant_classes_every_step_and_tabulates(tmp_path, capsys):
+    """Each round-7 variant runs a smoke lifetime; the default variant is the plain lifetime, and
+    every interaction is classed novel, confirmed or surprise."""
+    round7 = _script("online_round7")
+    out = tmp_path / "r7.jsonl"
+    for variant in round7.VARIANTS:
+        assert round7.main([variant, "1", "--budget", "120", "--out", str(out)]) == 0
+    runs = [json.loads(line) for line in out.read_text().splitlines()]
+    assert [r["variant"] for r in runs] == list(round7.VARIANTS)
+    for r in runs:
+        assert r["interactions"] in (120, 121)
+        assert sum(r["steps"].get(c, 0) for c in ("novel", "confirmed", "surprise")) == r["interactions"]
+        assert r["steps"]["novel"] == r["transitions"]  # each model entry was novel once
+        assert sum(r["download_trace"].values()) == r["phases"]
+    from cosim.online import OnlineConfig, make_run
+
+    plain = make_run(OnlineConfig(seed=1, max_interactions=120)).run()
+    assert runs[0]["interactions"] == plain.interactions and runs[0]["phases"] == len(plain.phases)
+    capsys.readouterr()
+    assert round7.main(["--table", str(out)]) == 0
+    assert "| adaptive | 1: **" in capsys.readouterr().out
+
+
+def test_online_round7_trace_ends_on_a_small_model():
+    import numpy as np
+
+    from ga.world_model import WorldModel
+
+    round7 = _script("online_round7")
+    m = WorldModel()
+    m.observe(1, 0, 2, False)  # 1 -0-> 2 -0-> 1: a cycle of obstacle states
+    m.observe(2, 0, 1, False)
+    m.observe(3, 0, 3, True)  # a crash
+    tables = np.zeros((2, 256), dtype=np.int64)
+    tables[1, 2] = 5  # the second controller leaves 2 by an untried motion
+    end = round7.trace_ends(tables, m, np.array([1, 3]), 0)
+    names = [[round7.ENDS[e] for e in row] for row in end]
+    assert names == [["cycle", "crash"], ["unknown", "crash"]]
