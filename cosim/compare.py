@@ -65,6 +65,17 @@ from cosim.compare_report import (  # noqa: F401  (re-exported: the names of cos
 # -- one lifetime per method (the only call sites of the runners) -----------------------------
 
 
+def _effective_online(arena: str, online: dict | None) -> dict:
+    """Every OnlineConfig field of an on-line row but the seed and arena: the options given and
+    all the defaults, so the cache key of a lifetime changes when a default does (a lifetime
+    cached under older defaults is never taken for one of the new)."""
+    from cosim.online_config import OnlineConfig
+
+    effective = OnlineConfig(arena=arena, **(online or {})).to_dict()
+    del effective["seed"], effective["arena"]
+    return effective
+
+
 def _online(task: dict) -> dict:
     from cosim.online import OnlineConfig, make_run
     from cosim.online_report import write_results
@@ -161,7 +172,7 @@ def make_tasks(methods, seeds, *, arena: str, out: str, shapings=SHAPINGS, onlin
     tasks = []
     for m in methods:
         if m == "online":
-            rows = [("online", "online", {"arena": arena, "online": dict(online or {})})]
+            rows = [("online", "online", {"arena": arena, "online": _effective_online(arena, online)})]
         elif m == "offline":
             rows = [("offline", "offline", {"arena": arena, "generations_cap": generations_cap})]
         elif m == "baseline":

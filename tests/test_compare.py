@@ -94,6 +94,30 @@ def test_methods_and_tasks():
     assert tasks[2]["config"]["learner"]["alpha"] > 0  # the learner's config is in the cache key
 
 
+def test_online_cache_key_is_the_effective_config(monkeypatch):
+    """The on-line row's key holds every default, so a changed default is a new lifetime."""
+    import dataclasses
+
+    import cosim.online_config as oc
+    from cosim.sweep import task_key
+
+    def key(**online):
+        return task_key(make_tasks(["online"], [1], arena="default", out="x", online=online)[0])
+
+    default_cycles = oc.OnlineConfig().loop_cycles
+    assert key() == key(loop_cycles=default_cycles)  # the same lifetime, the same key
+    assert key() != key(loop_cycles=default_cycles + 1)
+    before = key()
+    assert set(before["config"]["online"]) == {f.name for f in dataclasses.fields(oc.OnlineConfig)} - {"seed", "arena"}
+
+    @dataclasses.dataclass(frozen=True)
+    class NewerDefaults(oc.OnlineConfig):
+        loop_window: int = oc.OnlineConfig().loop_window + 1
+
+    monkeypatch.setattr(oc, "OnlineConfig", NewerDefaults)
+    assert key() != before
+
+
 def test_command_line_errors_are_one_line(capsys):
     assert main(["--methods", "baseline,sarsa"]) == 2
     err = capsys.readouterr().err
