@@ -41,6 +41,7 @@ import numpy as np
 from cosim.checkpoint import load_checkpoint, save_checkpoint
 from cosim.offline_noisy import (TRANSFER_TRIALS, NoisyStage, Records, load_arena_arg, noisy_generation,
                                  transfer)
+from cosim.offline_robust import RobustStage
 from cosim.offline_report import plot_results, seeds_table  # noqa: F401 (seeds_table: the API)
 from cosim.runs import atomic_savefig, atomic_write_json
 from ga.evolution import GAConfig, GeneticAlgorithm
@@ -59,6 +60,8 @@ DEFAULT_GENERATIONS_CAP = 3000
 DEFAULT_MAX_LEG_STEPS = 150
 # The noisy stage after the noise-free evolution (cosim.offline_noisy; docs/offline.md, issue 17).
 DEFAULT_NOISY = NoisyStage()
+# The robust stage after it (cosim.offline_robust; docs/offline.md round 4).
+DEFAULT_ROBUST = RobustStage()
 
 def default_ga_config(**overrides) -> GAConfig:
     """Paper section 5.1: population 20, tournament 5, elitism 1; our operator rates, plus the
@@ -110,12 +113,14 @@ def evaluate(world, rows, max_leg_steps: int, n_targets: int = N_TARGETS, reflex
 _WORLDS: dict = {}
 
 
-def _world(arena: str):
+def _world(arena: str, bias=None):
+    """The noise-free world of ``arena``, with the systematic motor error ``bias`` (a
+    `sim_world.world.Bias`, the robust stage's scenarios) if given; one per process."""
     from sim_world.world import World
 
-    world = _WORLDS.get(arena)
+    world = _WORLDS.get((arena, bias))
     if world is None:
-        world = _WORLDS[arena] = World(_load_arena(arena))
+        world = _WORLDS[arena, bias] = World(_load_arena(arena), bias=bias)
     return world
 
 
@@ -123,8 +128,8 @@ _load_arena = load_arena_arg
 
 
 def _evaluate_one(task) -> Evaluation:
-    arena, max_leg_steps, n_targets, rows = task
-    return evaluate(_world(arena), rows, max_leg_steps, n_targets)
+    arena, max_leg_steps, n_targets, rows, bias = task
+    return evaluate(_world(arena, bias), rows, max_leg_steps, n_targets)
 
 
 class Evaluator:
@@ -143,8 +148,8 @@ class Evaluator:
             ctx = multiprocessing.get_context("spawn")
             self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=ctx)
 
-    def __call__(self, pop: np.ndarray) -> list[Evaluation]:
-        """One Evaluation per genome, in order.
+    def __call__(self, pop: np.ndarray, bias=None) -> list[Evaluation]:
+        """One Evaluation per genome, in order; ``bias``: in that perturbed world (the robust stage).
 
         A run depends on the genome only through its truth table (reflex included), and the
         world is deterministic, so a genome whose table was evaluated recently (the elite, a
@@ -152,12 +157,12 @@ class Evaluator:
         being driven again: the same result, and `interactions` still counts it (paper: every
         individual of every generation). ``simulated_steps`` counts what was really driven.
         """
-        keys = [t.tobytes() for t in truth_tables(pop, reflex=True)]
+        keys = [(bias, t.tobytes()) for t in truth_tables(pop, reflex=True)]
         todo = {}
         for key, rows in zip(keys, pop):
             if key not in self._cache and key not in todo:
                 todo[key] = rows
-        tasks = [(self.arena, self.max_leg_steps, self.n_targets, rows) for rows in todo.values()]
+        tasks = [(self.arena, self.max_leg_steps, self.n_targets, rows, bias) for rows in todo.values()]
         if self._pool is None:
             fresh = [_evaluate_one(t) for t in tasks]
         else:
@@ -197,7 +202,7 @@ def _arena_digest(arena: str) -> str:
 
 
 def run_config(seed: int, arena: str, max_leg_steps: int, n_targets: int, ga_config: GAConfig,
-               noisy: NoisyStage | None = None) -> dict:
+               noisy: NoisyStage | None = None, robust: RobustStage | None = None) -> dict:
     """The parameters that define a run: a checkpoint resumes only under the same ones."""
     config = {
         "seed": int(seed),
@@ -209,6 +214,8 @@ def run_config(seed: int, arena: str, max_leg_steps: int, n_targets: int, ga_con
     }
     if noisy is not None and noisy.trials:
         config["noisy_stage"] = noisy.to_dict()
+    if robust is not None and robust.enabled:
+        config["robust_stage"] = robust.to_dict()
     return config
 
 
@@ -222,9 +229,15 @@ def _fresh_state(ga: GeneticAlgorithm) -> dict:
         "history": [],
         "best": None,
         "wall_time_s": 0.0,
-        "stage": 1,  # 2: the noisy stage (cosim.offline_noisy)
+        "stage": 1,  # 2: the noisy stage (cosim.offline_noisy) or the robust stage (cosim.offline_robust)
         "noisy": _fresh_noisy(),
+        "robust": _fresh_robust(),
     }
+
+
+def _fresh_robust() -> dict:
+    return {"level": 0, "from_generation": None, "interactions": 0, "noise_free_best": None,
+            "accepted": False, "levels_passed": []}
 
 
 def _fresh_noisy() -> dict:
@@ -268,6 +281,48 @@ def _noisy_step(ga, pop, evaluator, noisy: NoisyStage, records: Records, state, 
                   "clean_runs": sum(r.clean for rs in runs for r in rs)}
 
 
+def _robust_step(ga, pop, evaluator, robust: RobustStage, state, n_targets, states, transitions):
+    """One generation of the robust stage (`cosim.offline_robust`): every individual in the
+    level's perturbed worlds, fitness combined over them. The best is also driven noise-free
+    (counted, for the summary and the history). When it reaches every target in every scenario
+    the stage moves to the next level (or is done).
+    Returns the noise-free Evaluation of the best and the history entry's robust fields."""
+    level = state["robust"]["level"]
+    scenarios = robust.scenarios(level)
+    driven = evaluator.simulated_steps
+    per_scenario = [evaluator(pop, bias=b) for b in scenarios]
+    fitness = np.array([robust.combined([evs[j].fitness for evs in per_scenario]) for j in range(len(pop))])
+    failures = [next((evs[j].failure_state for evs in per_scenario if evs[j].failure_state is not None), None)
+                for j in range(len(pop))]
+    ga.tell(fitness, failures=failures)
+    i = int(np.argmax(fitness))
+    steps = 0
+    for evs in per_scenario:
+        for e in evs:
+            states |= e.states
+            transitions |= e.transitions
+            steps += e.steps
+    best = evaluator(pop[i:i + 1])[0]  # noise-free (cached by truth table)
+    states |= best.states
+    transitions |= best.transitions
+    steps += best.steps
+    state["interactions"] += steps
+    state["robust"]["interactions"] += steps
+    state["simulated_interactions"] += evaluator.simulated_steps - driven
+    targets = [int(evs[i].targets_reached) for evs in per_scenario]
+    fields = {"robust_level": level, "robust_bias_deg": robust.bias_deg[level], "robust_targets": targets,
+              "robust_fitness": float(fitness[i])}
+    state["best"] = _best_entry(pop[i], best, **fields)
+    if min(targets) >= n_targets:
+        state["robust"]["levels_passed"].append({"bias_deg": robust.bias_deg[level], "generation": ga.generation,
+                                                 "interactions": state["interactions"]})
+        if level + 1 < robust.levels:
+            state["robust"]["level"] = level + 1
+        else:
+            state["robust"]["accepted"] = True
+    return best, {"stage": 2, **fields}
+
+
 def run_offline(
     seed: int,
     *,
@@ -284,6 +339,7 @@ def run_offline(
     transfer_trials: int = TRANSFER_TRIALS,
     on_generation: Callable[[dict], None] | None = None,
     noisy: NoisyStage | None = None,
+    robust: RobustStage | None = None,
 ) -> dict:
     """Run (or, with ``resume``, continue) the model-free experiment; return the summary dict.
 
@@ -297,12 +353,16 @@ def run_offline(
     out.mkdir(parents=True, exist_ok=True)
     ga_config = ga_config or default_ga_config()
     noisy = DEFAULT_NOISY if noisy is None else noisy
-    config = run_config(seed, arena, max_leg_steps, n_targets, ga_config, noisy)
+    robust = DEFAULT_ROBUST if robust is None else robust
+    if noisy.trials and robust.enabled:
+        raise ValueError("the noisy stage and the robust stage exclude each other: choose one")
+    config = run_config(seed, arena, max_leg_steps, n_targets, ga_config, noisy, robust)
     ck_path = out / "checkpoint.json"
     if resume and ck_path.exists():
         state = load_checkpoint(ck_path, KIND, config)
         state.setdefault("stage", 1)  # a checkpoint written before the noisy stage existed
         state.setdefault("noisy", _fresh_noisy())
+        state.setdefault("robust", _fresh_robust())
         ga = GeneticAlgorithm.from_state_dict(state["ga"], np.random.default_rng())
     else:
         ga = GeneticAlgorithm(ga_config, np.random.default_rng(seed))
@@ -323,6 +383,11 @@ def run_offline(
             return state["noisy"]["accepted"] or (first is not None and (
                 ga.generation - first + 1 >= noisy.max_generations
                 or 0 < noisy.budget <= state["noisy"]["interactions"]))
+        if robust.enabled:
+            first = state["robust"]["from_generation"]
+            return state["robust"]["accepted"] or (first is not None and (
+                ga.generation - first + 1 >= robust.max_generations
+                or 0 < robust.budget <= state["interactions"]))
         return reached_all()
 
     bar = tqdm(total=generations_cap, initial=min(ga.generation, generations_cap), disable=not progress,
@@ -331,7 +396,10 @@ def run_offline(
         with Evaluator(arena, max_leg_steps, n_targets, workers) as evaluator:
             while not finished() and ga.generation < generations_cap:
                 pop = ga.ask()
-                if state["stage"] == 2:
+                if state["stage"] == 2 and robust.enabled:
+                    best, entry_extra = _robust_step(ga, pop, evaluator, robust, state, n_targets, states,
+                                                     transitions)
+                elif state["stage"] == 2:
                     best, entry_extra = _noisy_step(ga, pop, evaluator, noisy, records, state, seed, arena,
                                                     max_leg_steps, n_targets, states, transitions)
                 else:
@@ -352,6 +420,10 @@ def run_offline(
                         state["stage"] = 2  # the noise-free best reaches every target: go noisy
                         state["noisy"]["from_generation"] = ga.generation + 1
                         state["noisy"]["noise_free_best"] = dict(state["best"])
+                    if robust.enabled and best.targets_reached >= n_targets:
+                        state["stage"] = 2  # the noise-free best reaches every target: go perturbed
+                        state["robust"]["from_generation"] = ga.generation + 1
+                        state["robust"]["noise_free_best"] = dict(state["best"])
                 entry = {
                     "generation": ga.generation,
                     "best_fitness": best.fitness,
@@ -417,7 +489,21 @@ def _summary(seed, state, config, ga_config: GAConfig, workers, reached_all) -> 
         "config": config,
         "paper": PAPER,
         **({"noisy_stage": _noisy_summary(state, generations)} if "noisy_stage" in config else {}),
+        **({"robust_stage": _robust_summary(state, generations)} if "robust_stage" in config else {}),
     }
+
+
+def _robust_summary(state, generations: int) -> dict:
+    """What the robust stage did: from which generation, its interactions (in ``interactions``
+    already), the levels passed, whether the last was, the final best's targets in the perturbed
+    worlds, the noise-free best it started from."""
+    robust, best = state["robust"], state["best"] or {}
+    first = robust["from_generation"]
+    return {"from_generation": first, "generations": 0 if first is None else generations - first + 1,
+            "interactions": robust["interactions"], "accepted": robust["accepted"],
+            "levels_passed": robust["levels_passed"],
+            **{k: best[k] for k in ("robust_level", "robust_bias_deg", "robust_targets") if k in best},
+            "noise_free_best": robust["noise_free_best"]}
 
 
 def _noisy_summary(state, generations: int) -> dict:
@@ -433,6 +519,15 @@ def _noisy_summary(state, generations: int) -> dict:
 
 
 # -- Command line --------------------------------------------------------------------------------
+
+
+def _bias_list(text: str) -> tuple[float, ...]:
+    """``--robust-bias-deg``: comma-separated degrees ("" or "0": no robust stage)."""
+    try:
+        values = tuple(float(v) for v in text.split(",") if v.strip())
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected degrees separated by commas, got {text!r}") from None
+    return () if values == (0.0,) else values
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
@@ -458,6 +553,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
                         help="noisy stage: seeds of the champion/challenger race for the elite (0: none)")
     parser.add_argument("--noisy-budget", type=int, default=DEFAULT_NOISY.budget,
                         help="noisy stage: it ends once it has spent this many interactions (0: no limit)")
+    parser.add_argument("--robust-bias-deg", type=_bias_list, default=DEFAULT_ROBUST.bias_deg, metavar="B[,B...]",
+                        help="the robust stage (cosim.offline_robust): once the noise-free best reaches every "
+                             "target, evolve in two worlds with a heading bias of +B and -B degrees a motion; "
+                             "a list is a schedule of levels (empty: none)")
+    parser.add_argument("--robust-translation", type=float, default=DEFAULT_ROBUST.translation,
+                        help="robust stage: every scenario's steps are scaled by 1 + this (0.1: 10%% longer)")
+    parser.add_argument("--robust-combine", choices=("sum", "min"), default=DEFAULT_ROBUST.combine,
+                        help="robust stage: the fitness over the scenarios")
+    parser.add_argument("--robust-max-generations", type=int, default=DEFAULT_ROBUST.max_generations,
+                        help="robust stage: its generation cap (then the elite is the result)")
+    parser.add_argument("--robust-budget", type=int, default=DEFAULT_ROBUST.budget,
+                        help="robust stage: it ends once the whole run has spent this many interactions (0: no limit)")
     parser.add_argument("--transfer-trials", type=int, default=TRANSFER_TRIALS,
                         help="noisy-world runs of the final controller (noise seeds seed*1000+i)")
     parser.add_argument("--no-plots", action="store_true",
