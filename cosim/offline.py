@@ -521,12 +521,17 @@ def _noisy_summary(state, generations: int) -> dict:
 # -- Command line --------------------------------------------------------------------------------
 
 
+def _float_list(text: str) -> tuple[float, ...]:
+    """Comma-separated numbers."""
+    try:
+        return tuple(float(v) for v in text.split(",") if v.strip())
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected numbers separated by commas, got {text!r}") from None
+
+
 def _bias_list(text: str) -> tuple[float, ...]:
     """``--robust-bias-deg``: comma-separated degrees ("" or "0": no robust stage)."""
-    try:
-        values = tuple(float(v) for v in text.split(",") if v.strip())
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected degrees separated by commas, got {text!r}") from None
+    values = _float_list(text)
     return () if values == (0.0,) else values
 
 
@@ -557,8 +562,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
                         help="the robust stage (cosim.offline_robust): once the noise-free best reaches every "
                              "target, evolve in two worlds with a heading bias of +B and -B degrees a motion; "
                              "a list is a schedule of levels (empty: none)")
-    parser.add_argument("--robust-translation", type=float, default=DEFAULT_ROBUST.translation,
-                        help="robust stage: every scenario's steps are scaled by 1 + this (0.1: 10%% longer)")
+    parser.add_argument("--robust-translations", type=_float_list, default=DEFAULT_ROBUST.translations,
+                        metavar="X[,X...]",
+                        help="robust stage: the +B and -B worlds for each X, their steps scaled by 1 + X "
+                             "(0.1: 10%% longer)")
+    parser.add_argument("--robust-noise-free", action="store_true",
+                        help="robust stage: the unperturbed world is one more scenario")
     parser.add_argument("--robust-combine", choices=("sum", "min"), default=DEFAULT_ROBUST.combine,
                         help="robust stage: the fitness over the scenarios")
     parser.add_argument("--robust-max-generations", type=int, default=DEFAULT_ROBUST.max_generations,

@@ -12,8 +12,10 @@ error (`sim_world.world.Bias`):
 
 - the heading of every motion turned by +b degrees in one scenario and by -b in the other (drift
   towards either side accumulates along a wall, as the noise's random walk does, but every
-  individual meets the same drift), each with every translation scaled by 1 + ``translation``
-  (a longer step exposes a near miss);
+  individual meets the same drift), each with every translation scaled by 1 + x for each x of
+  ``translations`` (a longer step exposes a near miss, a shorter one a slow leg): 2 x
+  len(translations) scenarios, plus the unperturbed world if ``noise_free`` (a loop there that the
+  perturbations break is a loop the real robot may meet too);
 - the fitness is SPEC section 7's, summed over the scenarios (``combine="sum"``) or their minimum
   (``"min"``); a run stops at its first crash or leg time-out, as noise-free;
 - every run is deterministic, so there is no selection noise: the elite's fitness never falls,
@@ -39,18 +41,20 @@ class RobustStage:
     """Parameters of the robust stage; an empty ``bias_deg`` means none (the paper's method)."""
 
     bias_deg: tuple[float, ...] = ()  # heading bias (degrees a motion) of each level, in order
-    translation: float = 0.0  # every scenario's translations are scaled by 1 + translation
+    translations: tuple[float, ...] = (0.0,)  # step scale 1 + x of the scenarios, for each x
+    noise_free: bool = False  # the unperturbed world is one more scenario
     combine: str = "sum"  # the fitness over the scenarios: their sum or their minimum
     max_generations: int = 1000  # the stage's cap: then the elite is the result
     budget: int = 0  # the whole run's interactions: the stage ends once they reach it (0: no limit)
 
     def __post_init__(self):
         object.__setattr__(self, "bias_deg", tuple(float(b) for b in self.bias_deg))
+        object.__setattr__(self, "translations", tuple(float(x) for x in self.translations))
         for b in self.bias_deg:
             if not 0 < b < 45:
                 raise ValueError(f"bias_deg: every bias must be in (0, 45) degrees, got {b!r}")
-        if not -0.5 < self.translation < 0.5:
-            raise ValueError(f"translation must be in (-0.5, 0.5), got {self.translation!r}")
+        if not self.translations or not all(-0.5 < x < 0.5 for x in self.translations):
+            raise ValueError(f"translations: one or more, each in (-0.5, 0.5), got {self.translations!r}")
         if self.combine not in COMBINES:
             raise ValueError(f"combine must be one of {COMBINES}, got {self.combine!r}")
         for name in ("max_generations", "budget"):
@@ -66,10 +70,13 @@ class RobustStage:
     def levels(self) -> int:
         return len(self.bias_deg)
 
-    def scenarios(self, level: int) -> tuple[Bias, Bias]:
-        """The two perturbed worlds of ``level``: heading bias +b and -b, the same step scale."""
-        b, scale = self.bias_deg[level], 1.0 + self.translation
-        return Bias(rotation_deg=b, translation_scale=scale), Bias(rotation_deg=-b, translation_scale=scale)
+    def scenarios(self, level: int) -> tuple[Bias | None, ...]:
+        """The worlds of ``level``: heading bias +b and -b for each step scale, then None (the
+        unperturbed world) if ``noise_free``."""
+        b = self.bias_deg[level]
+        worlds = tuple(Bias(rotation_deg=sign * b, translation_scale=1.0 + x)
+                       for x in self.translations for sign in (1.0, -1.0))
+        return worlds + ((None,) if self.noise_free else ())
 
     def combined(self, fitnesses) -> float:
         """One individual's fitness from its scenarios' fitnesses."""
@@ -78,4 +85,5 @@ class RobustStage:
     def to_dict(self) -> dict:
         d = asdict(self)
         d["bias_deg"] = list(self.bias_deg)
+        d["translations"] = list(self.translations)
         return d

@@ -273,7 +273,8 @@ def robust_stage(args):
     from cosim.offline_robust import RobustStage
 
     try:
-        stage = RobustStage(bias_deg=args.robust_bias_deg, translation=args.robust_translation,
+        stage = RobustStage(bias_deg=args.robust_bias_deg, translations=args.robust_translations,
+                            noise_free=args.robust_noise_free,
                             combine=args.robust_combine, max_generations=args.robust_max_generations,
                             budget=args.robust_budget)
     except ValueError as exc:

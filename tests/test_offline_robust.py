@@ -13,7 +13,7 @@ from sim_world.world import Bias, World
 
 SMALL = dict(arena="one_obstacle", max_leg_steps=80, n_targets=6, progress=False, plots=False, transfer_trials=2,
              ga_config=default_ga_config(population=6, tournament=2))
-STAGE = RobustStage(bias_deg=(1.0, 3.0), translation=0.1)
+STAGE = RobustStage(bias_deg=(1.0, 3.0), translations=(0.1,))
 
 
 def test_a_bias_turns_and_stretches_every_motion_the_same_way():
@@ -42,9 +42,11 @@ def test_a_bias_turns_and_stretches_every_motion_the_same_way():
 def test_the_stage_has_two_mirrored_scenarios_a_level_and_checks_its_parameters():
     plus, minus = STAGE.scenarios(1)
     assert plus == Bias(3.0, 1.1) and minus == Bias(-3.0, 1.1)
+    assert RobustStage(bias_deg=(2,), translations=(0.1, -0.1), noise_free=True).scenarios(0) == \
+        (Bias(2.0, 1.1), Bias(-2.0, 1.1), Bias(2.0, 0.9), Bias(-2.0, 0.9), None)
     assert STAGE.combined([2.0, 5.0]) == 7.0 and RobustStage(bias_deg=(1,), combine="min").combined([2.0, 5.0]) == 2.0
     assert not RobustStage().enabled and STAGE.levels == 2
-    for bad in (dict(bias_deg=(0.0,)), dict(bias_deg=(50,)), dict(translation=0.7), dict(combine="mean"),
+    for bad in (dict(bias_deg=(0.0,)), dict(bias_deg=(50,)), dict(translations=(0.7,)), dict(translations=()), dict(combine="mean"),
                 dict(max_generations=0), dict(budget=-1)):
         with pytest.raises(ValueError):
             RobustStage(**bad)
@@ -117,7 +119,7 @@ def test_the_command_line_checks_the_robust_options(tmp_path, monkeypatch, capsy
     monkeypatch.chdir(tmp_path)
     for args, word in ((["--robust-bias-deg", "x"], "--robust-bias-deg"),
                        (["--robust-bias-deg", "60"], "bias"),
-                       (["--robust-bias-deg", "2", "--robust-translation", "0.9"], "translation"),
+                       (["--robust-bias-deg", "2", "--robust-translations", "0.9"], "translations"),
                        (["--robust-bias-deg", "2", "--noisy-trials", "1"], "exclude"),
                        (["--robust-budget", "-1"], "--robust-budget")):
         capsys.readouterr()
