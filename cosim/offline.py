@@ -148,8 +148,9 @@ class Evaluator:
             ctx = multiprocessing.get_context("spawn")
             self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=ctx)
 
-    def __call__(self, pop: np.ndarray, bias=None) -> list[Evaluation]:
-        """One Evaluation per genome, in order; ``bias``: in that perturbed world (the robust stage).
+    def __call__(self, pop: np.ndarray, bias=None, max_leg_steps: int | None = None) -> list[Evaluation]:
+        """One Evaluation per genome, in order; ``bias``: in that perturbed world, ``max_leg_steps``:
+        with that leg limit instead of the run's (the robust stage).
 
         A run depends on the genome only through its truth table (reflex included), and the
         world is deterministic, so a genome whose table was evaluated recently (the elite, a
@@ -157,12 +158,13 @@ class Evaluator:
         being driven again: the same result, and `interactions` still counts it (paper: every
         individual of every generation). ``simulated_steps`` counts what was really driven.
         """
-        keys = [(bias, t.tobytes()) for t in truth_tables(pop, reflex=True)]
+        leg_steps = self.max_leg_steps if max_leg_steps is None else int(max_leg_steps)
+        keys = [(bias, leg_steps, t.tobytes()) for t in truth_tables(pop, reflex=True)]
         todo = {}
         for key, rows in zip(keys, pop):
             if key not in self._cache and key not in todo:
                 todo[key] = rows
-        tasks = [(self.arena, self.max_leg_steps, self.n_targets, rows, bias) for rows in todo.values()]
+        tasks = [(self.arena, leg_steps, self.n_targets, rows, bias) for rows in todo.values()]
         if self._pool is None:
             fresh = [_evaluate_one(t) for t in tasks]
         else:
@@ -290,7 +292,7 @@ def _robust_step(ga, pop, evaluator, robust: RobustStage, state, n_targets, stat
     level = state["robust"]["level"]
     scenarios = robust.scenarios(level)
     driven = evaluator.simulated_steps
-    per_scenario = [evaluator(pop, bias=b) for b in scenarios]
+    per_scenario = [evaluator(pop, bias=b, max_leg_steps=robust.max_leg_steps or None) for b in scenarios]
     fitness = np.array([robust.combined([evs[j].fitness for evs in per_scenario]) for j in range(len(pop))])
     failures = [next((evs[j].failure_state for evs in per_scenario if evs[j].failure_state is not None), None)
                 for j in range(len(pop))]
@@ -385,9 +387,12 @@ def run_offline(
                 or 0 < noisy.budget <= state["noisy"]["interactions"]))
         if robust.enabled:
             first = state["robust"]["from_generation"]
-            return state["robust"]["accepted"] or (first is not None and (
-                ga.generation - first + 1 >= robust.max_generations
-                or 0 < robust.budget <= state["interactions"]))
+            if first is None:
+                return False
+            noise_free = state["robust"]["noise_free_best"]["run_interactions"]
+            return state["robust"]["accepted"] or ga.generation - first + 1 >= robust.max_generations \
+                or 0 < robust.budget <= state["interactions"] \
+                or 0 < robust.budget_factor * noise_free <= state["interactions"]
         return reached_all()
 
     bar = tqdm(total=generations_cap, initial=min(ga.generation, generations_cap), disable=not progress,
@@ -423,7 +428,8 @@ def run_offline(
                     if robust.enabled and best.targets_reached >= n_targets:
                         state["stage"] = 2  # the noise-free best reaches every target: go perturbed
                         state["robust"]["from_generation"] = ga.generation + 1
-                        state["robust"]["noise_free_best"] = dict(state["best"])
+                        state["robust"]["noise_free_best"] = dict(state["best"],
+                                                                  run_interactions=state["interactions"])
                 entry = {
                     "generation": ga.generation,
                     "best_fitness": best.fitness,
@@ -570,6 +576,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
                         help="robust stage: the unperturbed world is one more scenario")
     parser.add_argument("--robust-combine", choices=("sum", "min"), default=DEFAULT_ROBUST.combine,
                         help="robust stage: the fitness over the scenarios")
+    parser.add_argument("--robust-max-leg-steps", type=int, default=DEFAULT_ROBUST.max_leg_steps,
+                        help="robust stage: the leg limit in its scenarios (0: --max-leg-steps); a lower one "
+                             "leaves slack for the noise's slower legs")
+    parser.add_argument("--robust-budget-factor", type=float, default=DEFAULT_ROBUST.budget_factor,
+                        help="robust stage: it ends once the whole run has spent this many times the "
+                             "interactions of its noise-free stage (0: no limit)")
     parser.add_argument("--robust-max-generations", type=int, default=DEFAULT_ROBUST.max_generations,
                         help="robust stage: its generation cap (then the elite is the result)")
     parser.add_argument("--robust-budget", type=int, default=DEFAULT_ROBUST.budget,

@@ -22,7 +22,10 @@ error (`sim_world.world.Bias`):
   and "reaches 64 in every scenario" is a plain test. When the best does, the stage moves to the
   next bias of ``bias_deg`` (a schedule: 1, 2, ... degrees); after the last one the run ends.
   Otherwise it ends after ``max_generations`` of the stage or once the whole run has spent
-  ``budget`` interactions, and the elite is the result.
+  ``budget`` interactions (or ``budget_factor`` times those of its noise-free stage), and the
+  elite is the result.
+- ``max_leg_steps`` below the run's leg limit asks the perturbed runs to finish each leg with
+  slack: the noise makes legs slower, and a leg that needs 140 steps noise-free times out at 150.
 
 Every motion of every scenario is an interaction of the off-line method (issue 17's rule).
 """
@@ -46,6 +49,8 @@ class RobustStage:
     combine: str = "sum"  # the fitness over the scenarios: their sum or their minimum
     max_generations: int = 1000  # the stage's cap: then the elite is the result
     budget: int = 0  # the whole run's interactions: the stage ends once they reach it (0: no limit)
+    budget_factor: float = 0.0  # ... or once they reach this many times the noise-free stage's (0: none)
+    max_leg_steps: int = 0  # the leg limit in the scenarios (0: the run's)
 
     def __post_init__(self):
         object.__setattr__(self, "bias_deg", tuple(float(b) for b in self.bias_deg))
@@ -57,10 +62,12 @@ class RobustStage:
             raise ValueError(f"translations: one or more, each in (-0.5, 0.5), got {self.translations!r}")
         if self.combine not in COMBINES:
             raise ValueError(f"combine must be one of {COMBINES}, got {self.combine!r}")
-        for name in ("max_generations", "budget"):
+        for name, least in (("max_generations", 1), ("budget", 0), ("max_leg_steps", 0)):
             value = getattr(self, name)
-            if not (isinstance(value, int) and value >= (1 if name == "max_generations" else 0)):
-                raise ValueError(f"{name} must be an int >= {1 if name == 'max_generations' else 0}, got {value!r}")
+            if not (isinstance(value, int) and value >= least):
+                raise ValueError(f"{name} must be an int >= {least}, got {value!r}")
+        if not (self.budget_factor == 0 or self.budget_factor >= 1):
+            raise ValueError(f"budget_factor must be 0 (none) or >= 1, got {self.budget_factor!r}")
 
     @property
     def enabled(self) -> bool:
