@@ -88,16 +88,26 @@ class Evaluation:
     failure_state: int | None = None  # the state the run ended in, if it crashed or got stuck
 
 
-def evaluate(world, rows, max_leg_steps: int, n_targets: int = N_TARGETS, reflex: bool = True) -> Evaluation:
+def evaluate(world, rows, max_leg_steps: int, n_targets: int = N_TARGETS, reflex: bool = True,
+             max_failures: int = 0) -> Evaluation:
     """Drive ``world`` (a `sim_world.world.World`) with one genome through the course and score it
-    (`ga.model_free.model_free_fitness`)."""
+    (`ga.model_free.model_free_fitness`). ``max_failures`` > 0: a crash or a time-out fails only its
+    leg and the run goes on, up to that many failed legs; R1 counts the clean legs (the robust
+    stage's graded runs, `cosim.offline_robust`)."""
     rows = validate_rows(rows)
     if rows.ndim != 1:
         raise ValueError(f"evaluate takes one genome of shape (50,), got {rows.shape!r}")
-    res = run_course(world, truth_tables(rows, reflex=reflex), max_leg_steps, n_targets=n_targets)
-    # After a crash the pose is restored, so the state now is the one whose motion crashed; after
-    # a time-out it is a state of the loop the robot was caught in.
-    failed = res.crashed or res.timed_out
+    table = truth_tables(rows, reflex=reflex)
+    if max_failures:
+        res = run_course(world, table, max_leg_steps, n_targets=n_targets, skip_failed_legs=True,
+                         max_failures=max_failures)
+        res.crashed, res.timed_out = res.crashes > 0, res.failed_legs > res.crashes
+        failure_state = res.failure_states[0] if res.failure_states else None
+    else:
+        res = run_course(world, table, max_leg_steps, n_targets=n_targets)
+        # After a crash the pose is restored, so the state now is the one whose motion crashed;
+        # after a time-out it is a state of the loop the robot was caught in.
+        failure_state = int(world.state()) if res.crashed or res.timed_out else None
     fitness = model_free_fitness(res.targets_reached, res.final_distance_mm, world.arena.size_mm,
                                  res.steps, max_run_steps(max_leg_steps, n_targets))
     return Evaluation(
@@ -106,7 +116,7 @@ def evaluate(world, rows, max_leg_steps: int, n_targets: int = N_TARGETS, reflex
         final_distance_mm=float(res.final_distance_mm),
         states=frozenset(int(s) for s in res.states),
         transitions=frozenset(tuple(int(v) for v in t) for t in res.transitions),
-        failure_state=int(world.state()) if failed else None,
+        failure_state=None if failure_state is None else int(failure_state),
     )
 
 
@@ -128,8 +138,8 @@ _load_arena = load_arena_arg
 
 
 def _evaluate_one(task) -> Evaluation:
-    arena, max_leg_steps, n_targets, rows, bias = task
-    return evaluate(_world(arena, bias), rows, max_leg_steps, n_targets)
+    arena, max_leg_steps, n_targets, rows, bias, max_failures = task
+    return evaluate(_world(arena, bias), rows, max_leg_steps, n_targets, max_failures=max_failures)
 
 
 class Evaluator:
@@ -148,9 +158,11 @@ class Evaluator:
             ctx = multiprocessing.get_context("spawn")
             self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=ctx)
 
-    def __call__(self, pop: np.ndarray, bias=None, max_leg_steps: int | None = None) -> list[Evaluation]:
+    def __call__(self, pop: np.ndarray, bias=None, max_leg_steps: int | None = None,
+                 max_failures: int = 0) -> list[Evaluation]:
         """One Evaluation per genome, in order; ``bias``: in that perturbed world, ``max_leg_steps``:
-        with that leg limit instead of the run's (the robust stage).
+        with that leg limit instead of the run's, ``max_failures``: graded runs (`evaluate`; the
+        robust stage).
 
         A run depends on the genome only through its truth table (reflex included), and the
         world is deterministic, so a genome whose table was evaluated recently (the elite, a
@@ -159,12 +171,12 @@ class Evaluator:
         individual of every generation). ``simulated_steps`` counts what was really driven.
         """
         leg_steps = self.max_leg_steps if max_leg_steps is None else int(max_leg_steps)
-        keys = [(bias, leg_steps, t.tobytes()) for t in truth_tables(pop, reflex=True)]
+        keys = [(bias, leg_steps, max_failures, t.tobytes()) for t in truth_tables(pop, reflex=True)]
         todo = {}
         for key, rows in zip(keys, pop):
             if key not in self._cache and key not in todo:
                 todo[key] = rows
-        tasks = [(self.arena, leg_steps, self.n_targets, rows, bias) for rows in todo.values()]
+        tasks = [(self.arena, leg_steps, self.n_targets, rows, bias, max_failures) for rows in todo.values()]
         if self._pool is None:
             fresh = [_evaluate_one(t) for t in tasks]
         else:
@@ -292,7 +304,8 @@ def _robust_step(ga, pop, evaluator, robust: RobustStage, state, n_targets, stat
     level = state["robust"]["level"]
     scenarios = robust.scenarios(level)
     driven = evaluator.simulated_steps
-    per_scenario = [evaluator(pop, bias=b, max_leg_steps=robust.max_leg_steps or None) for b in scenarios]
+    per_scenario = [evaluator(pop, bias=b, max_leg_steps=robust.max_leg_steps or None,
+                              max_failures=robust.max_failures) for b in scenarios]
     fitness = np.array([robust.combined([evs[j].fitness for evs in per_scenario]) for j in range(len(pop))])
     failures = [next((evs[j].failure_state for evs in per_scenario if evs[j].failure_state is not None), None)
                 for j in range(len(pop))]
@@ -582,6 +595,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     parser.add_argument("--robust-budget-factor", type=float, default=DEFAULT_ROBUST.budget_factor,
                         help="robust stage: it ends once the whole run has spent this many times the "
                              "interactions of its noise-free stage (0: no limit)")
+    parser.add_argument("--robust-max-failures", type=int, default=DEFAULT_ROBUST.max_failures,
+                        help="robust stage: graded runs, a failure ends only its leg, up to this many failed "
+                             "legs (0: a run ends at its first failure)")
     parser.add_argument("--robust-max-generations", type=int, default=DEFAULT_ROBUST.max_generations,
                         help="robust stage: its generation cap (then the elite is the result)")
     parser.add_argument("--robust-budget", type=int, default=DEFAULT_ROBUST.budget,

@@ -24,6 +24,10 @@ error (`sim_world.world.Bias`):
   Otherwise it ends after ``max_generations`` of the stage or once the whole run has spent
   ``budget`` interactions (or ``budget_factor`` times those of its noise-free stage), and the
   elite is the result.
+- ``max_failures`` > 0: a graded run, a crash or a time-out fails only its leg and the run goes on
+  at the next leg's pose (up to that many failed legs); R1 counts the clean legs. In a
+  deterministic world every leg is then a test of its own, so the GA can mend several hard legs
+  at once instead of waiting at the first one.
 - ``max_leg_steps`` below the run's leg limit asks the perturbed runs to finish each leg with
   slack: the noise makes legs slower, and a leg that needs 140 steps noise-free times out at 150.
 
@@ -51,6 +55,7 @@ class RobustStage:
     budget: int = 0  # the whole run's interactions: the stage ends once they reach it (0: no limit)
     budget_factor: float = 0.0  # ... or once they reach this many times the noise-free stage's (0: none)
     max_leg_steps: int = 0  # the leg limit in the scenarios (0: the run's)
+    max_failures: int = 0  # graded runs: a failure ends its leg, up to this many (0: ends the run)
 
     def __post_init__(self):
         object.__setattr__(self, "bias_deg", tuple(float(b) for b in self.bias_deg))
@@ -62,7 +67,8 @@ class RobustStage:
             raise ValueError(f"translations: one or more, each in (-0.5, 0.5), got {self.translations!r}")
         if self.combine not in COMBINES:
             raise ValueError(f"combine must be one of {COMBINES}, got {self.combine!r}")
-        for name, least in (("max_generations", 1), ("budget", 0), ("max_leg_steps", 0)):
+        for name, least in (("max_generations", 1), ("budget", 0), ("max_leg_steps", 0),
+                            ("max_failures", 0)):
             value = getattr(self, name)
             if not (isinstance(value, int) and value >= least):
                 raise ValueError(f"{name} must be an int >= {least}, got {value!r}")
