@@ -41,7 +41,7 @@ import numpy as np
 from cosim.checkpoint import load_checkpoint, save_checkpoint
 from cosim.offline_noisy import (TRANSFER_TRIALS, NoisyStage, Records, load_arena_arg, noisy_generation,
                                  transfer)
-from cosim.offline_robust import RobustStage
+from cosim.offline_robust import FrozenNoise, RobustStage
 from cosim.offline_report import plot_results, seeds_table  # noqa: F401 (seeds_table: the API)
 from cosim.runs import atomic_savefig, atomic_write_json
 from ga.evolution import GAConfig, GeneticAlgorithm
@@ -89,7 +89,7 @@ class Evaluation:
 
 
 def evaluate(world, rows, max_leg_steps: int, n_targets: int = N_TARGETS, reflex: bool = True,
-             max_failures: int = 0) -> Evaluation:
+             max_failures: int = 0, leg_noise_seed=None) -> Evaluation:
     """Drive ``world`` (a `sim_world.world.World`) with one genome through the course and score it
     (`ga.model_free.model_free_fitness`). ``max_failures`` > 0: a crash or a time-out fails only its
     leg and the run goes on, up to that many failed legs; R1 counts the clean legs (the robust
@@ -100,11 +100,11 @@ def evaluate(world, rows, max_leg_steps: int, n_targets: int = N_TARGETS, reflex
     table = truth_tables(rows, reflex=reflex)
     if max_failures:
         res = run_course(world, table, max_leg_steps, n_targets=n_targets, skip_failed_legs=True,
-                         max_failures=max_failures)
+                         max_failures=max_failures, leg_noise_seed=leg_noise_seed)
         res.crashed, res.timed_out = res.crashes > 0, res.failed_legs > res.crashes
         failure_state = res.failure_states[0] if res.failure_states else None
     else:
-        res = run_course(world, table, max_leg_steps, n_targets=n_targets)
+        res = run_course(world, table, max_leg_steps, n_targets=n_targets, leg_noise_seed=leg_noise_seed)
         # After a crash the pose is restored, so the state now is the one whose motion crashed;
         # after a time-out it is a state of the loop the robot was caught in.
         failure_state = int(world.state()) if res.crashed or res.timed_out else None
@@ -125,12 +125,17 @@ _WORLDS: dict = {}
 
 def _world(arena: str, bias=None):
     """The noise-free world of ``arena``, with the systematic motor error ``bias`` (a
-    `sim_world.world.Bias`, the robust stage's scenarios) if given; one per process."""
-    from sim_world.world import World
+    `sim_world.world.Bias`, the robust stage's scenarios) if given, or the noisy world of a
+    `cosim.offline_robust.FrozenNoise` scenario; one per process."""
+    from sim_world.world import DEFAULT_NOISE, World
 
     world = _WORLDS.get((arena, bias))
     if world is None:
-        world = _WORLDS[arena, bias] = World(_load_arena(arena), bias=bias)
+        if isinstance(bias, FrozenNoise):
+            world = World(_load_arena(arena), noise=DEFAULT_NOISE, seed=0)
+        else:
+            world = World(_load_arena(arena), bias=bias)
+        _WORLDS[arena, bias] = world
     return world
 
 
@@ -139,7 +144,8 @@ _load_arena = load_arena_arg
 
 def _evaluate_one(task) -> Evaluation:
     arena, max_leg_steps, n_targets, rows, bias, max_failures = task
-    return evaluate(_world(arena, bias), rows, max_leg_steps, n_targets, max_failures=max_failures)
+    return evaluate(_world(arena, bias), rows, max_leg_steps, n_targets, max_failures=max_failures,
+                    leg_noise_seed=bias.leg_seed if isinstance(bias, FrozenNoise) else None)
 
 
 class Evaluator:
@@ -233,7 +239,7 @@ def run_config(seed: int, arena: str, max_leg_steps: int, n_targets: int, ga_con
     return config
 
 
-def _fresh_state(ga: GeneticAlgorithm) -> dict:
+def _fresh_state(ga: GeneticAlgorithm, ga_seed: int) -> dict:
     return {
         "ga": ga.state_dict(),
         "interactions": 0,
@@ -243,6 +249,7 @@ def _fresh_state(ga: GeneticAlgorithm) -> dict:
         "history": [],
         "best": None,
         "wall_time_s": 0.0,
+        "seed": int(ga_seed),
         "stage": 1,  # 2: the noisy stage (cosim.offline_noisy) or the robust stage (cosim.offline_robust)
         "noisy": _fresh_noisy(),
         "robust": _fresh_robust(),
@@ -302,7 +309,7 @@ def _robust_step(ga, pop, evaluator, robust: RobustStage, state, n_targets, stat
     the stage moves to the next level (or is done).
     Returns the noise-free Evaluation of the best and the history entry's robust fields."""
     level = state["robust"]["level"]
-    scenarios = robust.scenarios(level)
+    scenarios = robust.scenarios(level, state["seed"])
     driven = evaluator.simulated_steps
     per_scenario = [evaluator(pop, bias=b, max_leg_steps=robust.max_leg_steps or None,
                               max_failures=robust.max_failures) for b in scenarios]
@@ -378,10 +385,11 @@ def run_offline(
         state.setdefault("stage", 1)  # a checkpoint written before the noisy stage existed
         state.setdefault("noisy", _fresh_noisy())
         state.setdefault("robust", _fresh_robust())
+        state.setdefault("seed", int(seed))
         ga = GeneticAlgorithm.from_state_dict(state["ga"], np.random.default_rng())
     else:
         ga = GeneticAlgorithm(ga_config, np.random.default_rng(seed))
-        state = _fresh_state(ga)
+        state = _fresh_state(ga, seed)
     states = set(state["world_states"])
     transitions = {tuple(t) for t in state["transitions"]}
     records = Records(state["noisy"]["records"])
@@ -595,6 +603,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     parser.add_argument("--robust-budget-factor", type=float, default=DEFAULT_ROBUST.budget_factor,
                         help="robust stage: it ends once the whole run has spent this many times the "
                              "interactions of its noise-free stage (0: no limit)")
+    parser.add_argument("--robust-frozen-noise", type=int, default=DEFAULT_ROBUST.frozen_noise,
+                        help="robust stage: this many scenarios more in the noisy world with the same noise "
+                             "seeds in every generation (cosim.offline_robust.FrozenNoise)")
     parser.add_argument("--robust-max-failures", type=int, default=DEFAULT_ROBUST.max_failures,
                         help="robust stage: graded runs, a failure ends only its leg, up to this many failed "
                              "legs (0: a run ends at its first failure)")

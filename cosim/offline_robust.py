@@ -41,6 +41,19 @@ from dataclasses import asdict, dataclass
 from sim_world.world import Bias
 
 COMBINES = ("sum", "min")
+NOISE_TAG = 170_018  # first word of the frozen noise seeds (never a transfer or diagnosis seed)
+
+
+@dataclass(frozen=True)
+class FrozenNoise:
+    """A scenario in the noisy world (`sim_world.world.DEFAULT_NOISE`) whose noise is the same in
+    every generation: leg j is re-seeded with ``[*seed, j]``, so a run is still a pure function of
+    the controller (no selection noise), but it meets random drift, step errors and IR errors."""
+
+    seed: tuple[int, ...]
+
+    def leg_seed(self, leg: int) -> list[int]:
+        return [*self.seed, int(leg)]
 
 
 @dataclass(frozen=True)
@@ -50,6 +63,7 @@ class RobustStage:
     bias_deg: tuple[float, ...] = ()  # heading bias (degrees a motion) of each level, in order
     translations: tuple[float, ...] = (0.0,)  # step scale 1 + x of the scenarios, for each x
     noise_free: bool = False  # the unperturbed world is one more scenario
+    frozen_noise: int = 0  # this many FrozenNoise scenarios more, the same at every level
     combine: str = "sum"  # the fitness over the scenarios: their sum or their minimum
     max_generations: int = 1000  # the stage's cap: then the elite is the result
     budget: int = 0  # the whole run's interactions: the stage ends once they reach it (0: no limit)
@@ -67,7 +81,7 @@ class RobustStage:
             raise ValueError(f"translations: one or more, each in (-0.5, 0.5), got {self.translations!r}")
         if self.combine not in COMBINES:
             raise ValueError(f"combine must be one of {COMBINES}, got {self.combine!r}")
-        for name, least in (("max_generations", 1), ("budget", 0), ("max_leg_steps", 0),
+        for name, least in (("max_generations", 1), ("budget", 0), ("max_leg_steps", 0), ("frozen_noise", 0),
                             ("max_failures", 0)):
             value = getattr(self, name)
             if not (isinstance(value, int) and value >= least):
@@ -83,13 +97,14 @@ class RobustStage:
     def levels(self) -> int:
         return len(self.bias_deg)
 
-    def scenarios(self, level: int) -> tuple[Bias | None, ...]:
+    def scenarios(self, level: int, seed: int = 0) -> tuple[Bias | FrozenNoise | None, ...]:
         """The worlds of ``level``: heading bias +b and -b for each step scale, then None (the
-        unperturbed world) if ``noise_free``."""
+        unperturbed world) if ``noise_free``, then the run ``seed``'s frozen noise scenarios."""
         b = self.bias_deg[level]
         worlds = tuple(Bias(rotation_deg=sign * b, translation_scale=1.0 + x)
                        for x in self.translations for sign in (1.0, -1.0))
-        return worlds + ((None,) if self.noise_free else ())
+        frozen = tuple(FrozenNoise((NOISE_TAG, int(seed), k)) for k in range(self.frozen_noise))
+        return worlds + ((None,) if self.noise_free else ()) + frozen
 
     def combined(self, fitnesses) -> float:
         """One individual's fitness from its scenarios' fitnesses."""
