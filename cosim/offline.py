@@ -302,7 +302,8 @@ def _noisy_step(ga, pop, evaluator, noisy: NoisyStage, records: Records, state, 
                   "clean_runs": sum(r.clean for rs in runs for r in rs)}
 
 
-def _robust_step(ga, pop, evaluator, robust: RobustStage, state, n_targets, states, transitions):
+def _robust_step(ga, pop, evaluator, robust: RobustStage, state, arena, max_leg_steps, n_targets, states,
+                 transitions):
     """One generation of the robust stage (`cosim.offline_robust`): every individual in the
     level's perturbed worlds, fitness combined over them. The best is also driven noise-free
     (counted, for the summary and the history). When it reaches every target in every scenario
@@ -335,6 +336,9 @@ def _robust_step(ga, pop, evaluator, robust: RobustStage, state, n_targets, stat
     fields = {"robust_level": level, "robust_bias_deg": robust.bias_deg[level], "robust_targets": targets,
               "robust_fitness": float(fitness[i])}
     state["best"] = _best_entry(pop[i], best, **fields)
+    first = state["robust"]["from_generation"]
+    if robust.validate_runs and ((ga.generation - first) % robust.validate_every == 0 or min(targets) >= n_targets):
+        _validate(evaluator, pop[i], robust, state, arena, max_leg_steps, n_targets)
     if min(targets) >= n_targets:
         state["robust"]["levels_passed"].append({"bias_deg": robust.bias_deg[level], "generation": ga.generation,
                                                  "interactions": state["interactions"]})
@@ -343,6 +347,36 @@ def _robust_step(ga, pop, evaluator, robust: RobustStage, state, n_targets, stat
         else:
             state["robust"]["accepted"] = True
     return best, {"stage": 2, **fields}
+
+
+def _validate(evaluator, rows, robust: RobustStage, state, arena, max_leg_steps, n_targets) -> None:
+    """Drive the elite ``rows`` (state["best"]) on the stage's validation noise seeds, every leg
+    tried (`cosim.offline_noisy.drive_noisy`), once per truth table; counted as interactions.
+    The run's result is the validated elite with the fewest failed legs (`_validated_best`)."""
+    from cosim.offline_noisy import _drive_one, table_key
+
+    key = table_key(rows)
+    validated = state["robust"].setdefault("validated", {})
+    if key in validated:
+        return
+    tasks = [(arena, max_leg_steps, n_targets, rows, list(seed), n_targets)
+             for seed in robust.validation_seeds(state["seed"])]
+    runs = evaluator.map(_drive_one, tasks)
+    steps = sum(r.steps for r in runs)
+    state["interactions"] += steps
+    state["robust"]["interactions"] += steps
+    state["simulated_interactions"] += steps
+    validated[key] = {"failed_legs": sum(r.failed_legs for r in runs), "runs": len(runs),
+                      "order": len(validated), "best": dict(state["best"])}
+
+
+def _validated_best(state) -> dict | None:
+    """The validated elite with the fewest failed legs (the later one on a tie), or None."""
+    validated = state["robust"].get("validated") or {}
+    if not validated:
+        return None
+    pick = min(validated.values(), key=lambda v: (v["failed_legs"], -v["order"]))
+    return dict(pick["best"], validation_failed_legs=pick["failed_legs"], validation_runs=pick["runs"])
 
 
 def run_offline(
@@ -423,8 +457,8 @@ def run_offline(
             while not finished() and ga.generation < generations_cap:
                 pop = ga.ask()
                 if state["stage"] == 2 and robust.enabled:
-                    best, entry_extra = _robust_step(ga, pop, evaluator, robust, state, n_targets, states,
-                                                     transitions)
+                    best, entry_extra = _robust_step(ga, pop, evaluator, robust, state, arena, max_leg_steps,
+                                                     n_targets, states, transitions)
                 elif state["stage"] == 2:
                     best, entry_extra = _noisy_step(ga, pop, evaluator, noisy, records, state, seed, arena,
                                                     max_leg_steps, n_targets, states, transitions)
@@ -478,6 +512,8 @@ def run_offline(
     finally:
         bar.close()
 
+    if robust.validate_runs and _validated_best(state) is not None:
+        state["best"] = _validated_best(state)  # the run's result: the best validated elite
     summary = _summary(seed, state, config, ga_config, workers, reached_all())
     if transfer_trials:
         summary["transfer"] = transfer(summary["best_genome"], arena, max_leg_steps, n_targets, seed,
@@ -606,6 +642,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     parser.add_argument("--robust-frozen-noise", type=int, default=DEFAULT_ROBUST.frozen_noise,
                         help="robust stage: this many scenarios more in the noisy world with the same noise "
                              "seeds in every generation (cosim.offline_robust.FrozenNoise)")
+    parser.add_argument("--robust-validate-runs", type=int, default=DEFAULT_ROBUST.validate_runs,
+                        help="robust stage: drive the elite on this many noisy validation runs (every leg, "
+                             "counted) every --robust-validate-every generations and at each level passed; the "
+                             "result is the validated elite with the fewest failed legs (0: the last elite)")
+    parser.add_argument("--robust-validate-every", type=int, default=DEFAULT_ROBUST.validate_every,
+                        help="robust stage: generations between validations")
     parser.add_argument("--robust-max-failures", type=int, default=DEFAULT_ROBUST.max_failures,
                         help="robust stage: graded runs, a failure ends only its leg, up to this many failed "
                              "legs (0: a run ends at its first failure)")

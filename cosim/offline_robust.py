@@ -30,6 +30,10 @@ error (`sim_world.world.Bias`):
   at once instead of waiting at the first one.
 - ``max_leg_steps`` below the run's leg limit asks the perturbed runs to finish each leg with
   slack: the noise makes legs slower, and a leg that needs 140 steps noise-free times out at 150.
+- ``validate_runs`` > 0: every ``validate_every`` generations and at each level passed, the elite
+  (if not validated before) drives ``validate_runs`` noisy runs on fixed validation seeds, every
+  leg tried; the run's result is the validated elite with the fewest failed legs. (The elites of
+  a stage differ in how they fare in noise, and the last is not always the best.)
 
 Every motion of every scenario is an interaction of the off-line method (issue 17's rule).
 """
@@ -42,6 +46,7 @@ from sim_world.world import Bias
 
 COMBINES = ("sum", "min")
 NOISE_TAG = 170_018  # first word of the frozen noise seeds (never a transfer or diagnosis seed)
+VALIDATION_TAG = 170_019  # first word of the validation noise seeds
 
 
 @dataclass(frozen=True)
@@ -64,6 +69,8 @@ class RobustStage:
     translations: tuple[float, ...] = (0.0,)  # step scale 1 + x of the scenarios, for each x
     noise_free: bool = False  # the unperturbed world is one more scenario
     frozen_noise: int = 0  # this many FrozenNoise scenarios more, the same at every level
+    validate_runs: int = 0  # noisy validation runs of the elite (0: none; the last elite is the result)
+    validate_every: int = 5  # generations between validations (and at every level passed)
     combine: str = "sum"  # the fitness over the scenarios: their sum or their minimum
     max_generations: int = 1000  # the stage's cap: then the elite is the result
     budget: int = 0  # the whole run's interactions: the stage ends once they reach it (0: no limit)
@@ -81,7 +88,7 @@ class RobustStage:
             raise ValueError(f"translations: one or more, each in (-0.5, 0.5), got {self.translations!r}")
         if self.combine not in COMBINES:
             raise ValueError(f"combine must be one of {COMBINES}, got {self.combine!r}")
-        for name, least in (("max_generations", 1), ("budget", 0), ("max_leg_steps", 0), ("frozen_noise", 0),
+        for name, least in (("max_generations", 1), ("budget", 0), ("max_leg_steps", 0), ("frozen_noise", 0), ("validate_runs", 0), ("validate_every", 1),
                             ("max_failures", 0)):
             value = getattr(self, name)
             if not (isinstance(value, int) and value >= least):
@@ -105,6 +112,10 @@ class RobustStage:
                        for x in self.translations for sign in (1.0, -1.0))
         frozen = tuple(FrozenNoise((NOISE_TAG, int(seed), k)) for k in range(self.frozen_noise))
         return worlds + ((None,) if self.noise_free else ()) + frozen
+
+    def validation_seeds(self, seed: int) -> list[tuple[int, int, int]]:
+        """The noise seeds of the validation runs (the same for every elite of run ``seed``)."""
+        return [(VALIDATION_TAG, int(seed), k) for k in range(self.validate_runs)]
 
     def combined(self, fitnesses) -> float:
         """One individual's fitness from its scenarios' fitnesses."""
