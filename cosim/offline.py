@@ -545,6 +545,8 @@ def _summary(seed, state, config, ga_config: GAConfig, workers, reached_all) -> 
         "transition_outcomes": len(state["transitions"]),
         "best_fitness": best.get("fitness"),
         "best_steps": best.get("steps"),
+        **({"best_validation_failed_legs": best["validation_failed_legs"],
+            "best_validation_runs": best["validation_runs"]} if "validation_failed_legs" in best else {}),
         "best_genome": best.get("genome"),
         "wall_time_s": round(state["wall_time_s"], 3),
         "workers": int(workers),

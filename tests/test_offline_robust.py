@@ -127,3 +127,32 @@ def test_the_command_line_checks_the_robust_options(tmp_path, monkeypatch, capsy
         err = capsys.readouterr().err.strip().splitlines()
         assert status == 2 and len(err) == 1 and err[0].startswith("error: ") and word in err[0], (args, err)
     assert not (tmp_path / "run" / "summary.json").exists()
+
+
+def test_frozen_noise_scenarios_are_noisy_but_the_same_every_time():
+    from cosim.offline import _evaluate_one
+    from cosim.offline_robust import FrozenNoise
+    from ga.operators import random_population
+
+    stage = RobustStage(bias_deg=(2.0,), frozen_noise=2)
+    *_, a, b = stage.scenarios(0, seed=7)
+    assert a == FrozenNoise((170018, 7, 0)) and b == FrozenNoise((170018, 7, 1))
+    rows = random_population(np.random.default_rng(1), 1)[0]
+    runs = [_evaluate_one(("one_obstacle", 80, 6, rows, s, 3)) for s in (a, a, b)]
+    assert runs[0] == runs[1]
+    plain = _evaluate_one(("one_obstacle", 80, 6, rows, None, 3))
+    assert runs[0].steps > 0 and (runs[0] != plain or runs[2] != plain)
+
+
+def test_validation_picks_the_elite_with_the_fewest_failed_legs_and_is_counted(tmp_path):
+    stage = RobustStage(bias_deg=(1.0, 3.0), translations=(0.1,), validate_runs=2, validate_every=1)
+    plain = run_offline(1, generations_cap=300, out=tmp_path / "a", robust=STAGE, **SMALL)
+    checked = run_offline(1, generations_cap=300, out=tmp_path / "b", robust=stage, **SMALL)
+    # The same evolution (validation draws nothing from the GA's generator), more interactions.
+    assert checked["generations"] == plain["generations"]
+    assert checked["interactions"] > plain["interactions"]
+    ck = json.loads((tmp_path / "b" / "checkpoint.json").read_text())
+    validated = (ck.get("state") or ck)["robust"]["validated"]
+    assert len(validated) >= 2
+    fewest = min(v["failed_legs"] for v in validated.values())
+    assert checked["best_validation_failed_legs"] == fewest
