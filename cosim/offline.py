@@ -631,6 +631,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
                         metavar="X[,X...]",
                         help="robust stage: the +B and -B worlds for each X, their steps scaled by 1 + X "
                              "(0.1: 10%% longer)")
+    parser.add_argument("--robust-paired", action="store_true",
+                        help="robust stage: one world per X, the bias sign alternating (+B, -B, ...)")
     parser.add_argument("--robust-noise-free", action="store_true",
                         help="robust stage: the unperturbed world is one more scenario")
     parser.add_argument("--robust-combine", choices=("sum", "min"), default=DEFAULT_ROBUST.combine,

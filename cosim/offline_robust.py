@@ -14,7 +14,8 @@ error (`sim_world.world.Bias`):
   towards either side accumulates along a wall, as the noise's random walk does, but every
   individual meets the same drift), each with every translation scaled by 1 + x for each x of
   ``translations`` (a longer step exposes a near miss, a shorter one a slow leg): 2 x
-  len(translations) scenarios, plus the unperturbed world if ``noise_free`` (a loop there that the
+  len(translations) scenarios (with ``paired``, one per x, the sign alternating: (0.1, -0.1)
+  gives +b with long steps and -b with short ones), plus the unperturbed world if ``noise_free`` (a loop there that the
   perturbations break is a loop the real robot may meet too);
 - the fitness is SPEC section 7's, summed over the scenarios (``combine="sum"``) or their minimum
   (``"min"``); a run stops at its first crash or leg time-out, as noise-free;
@@ -67,6 +68,7 @@ class RobustStage:
 
     bias_deg: tuple[float, ...] = ()  # heading bias (degrees a motion) of each level, in order
     translations: tuple[float, ...] = (0.0,)  # step scale 1 + x of the scenarios, for each x
+    paired: bool = False  # one world per step scale, the bias sign alternating (+b, -b, +b, ...)
     noise_free: bool = False  # the unperturbed world is one more scenario
     frozen_noise: int = 0  # this many FrozenNoise scenarios more, the same at every level
     validate_runs: int = 0  # noisy validation runs of the elite (0: none; the last elite is the result)
@@ -108,8 +110,12 @@ class RobustStage:
         """The worlds of ``level``: heading bias +b and -b for each step scale, then None (the
         unperturbed world) if ``noise_free``, then the run ``seed``'s frozen noise scenarios."""
         b = self.bias_deg[level]
-        worlds = tuple(Bias(rotation_deg=sign * b, translation_scale=1.0 + x)
-                       for x in self.translations for sign in (1.0, -1.0))
+        if self.paired:
+            worlds = tuple(Bias(rotation_deg=(-b if k % 2 else b), translation_scale=1.0 + x)
+                           for k, x in enumerate(self.translations))
+        else:
+            worlds = tuple(Bias(rotation_deg=sign * b, translation_scale=1.0 + x)
+                           for x in self.translations for sign in (1.0, -1.0))
         frozen = tuple(FrozenNoise((NOISE_TAG, int(seed), k)) for k in range(self.frozen_noise))
         return worlds + ((None,) if self.noise_free else ()) + frozen
 

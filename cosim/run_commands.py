@@ -275,7 +275,7 @@ def robust_stage(args):
 
     try:
         stage = RobustStage(bias_deg=args.robust_bias_deg, translations=args.robust_translations,
-                            noise_free=args.robust_noise_free,
+                            noise_free=args.robust_noise_free, paired=args.robust_paired,
                             combine=args.robust_combine, max_generations=args.robust_max_generations,
                             budget=args.robust_budget, budget_factor=args.robust_budget_factor,
                             max_leg_steps=args.robust_max_leg_steps, max_failures=args.robust_max_failures,
