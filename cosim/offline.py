@@ -342,6 +342,7 @@ def _robust_step(ga, pop, evaluator, robust: RobustStage, state, arena, max_leg_
     if min(targets) >= n_targets:
         state["robust"]["levels_passed"].append({"bias_deg": robust.bias_deg[level], "generation": ga.generation,
                                                  "interactions": state["interactions"]})
+        state["robust"]["passed_best"] = dict(state["best"])
         if level + 1 < robust.levels:
             state["robust"]["level"] = level + 1
         else:
@@ -514,6 +515,10 @@ def run_offline(
 
     if robust.validate_runs and _validated_best(state) is not None:
         state["best"] = _validated_best(state)  # the run's result: the best validated elite
+    elif robust.enabled and state["robust"].get("passed_best"):
+        # The run's result: the elite that passed the last level passed. An elite of a level
+        # not passed yet may be better there and worse elsewhere (docs/offline.md, round 4).
+        state["best"] = dict(state["robust"]["passed_best"])
     summary = _summary(seed, state, config, ga_config, workers, reached_all())
     if transfer_trials:
         summary["transfer"] = transfer(summary["best_genome"], arena, max_leg_steps, n_targets, seed,

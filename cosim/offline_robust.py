@@ -24,7 +24,8 @@ error (`sim_world.world.Bias`):
   next bias of ``bias_deg`` (a schedule: 1, 2, ... degrees); after the last one the run ends.
   Otherwise it ends after ``max_generations`` of the stage or once the whole run has spent
   ``budget`` interactions (or ``budget_factor`` times those of its noise-free stage), and the
-  elite is the result.
+  result is the elite that passed the last level passed (an elite of the level under way may
+  be better there and worse elsewhere), or the elite if no level was passed.
 - ``max_failures`` > 0: a graded run, a crash or a time-out fails only its leg and the run goes on
   at the next leg's pose (up to that many failed legs); R1 counts the clean legs. In a
   deterministic world every leg is then a test of its own, so the GA can mend several hard legs
