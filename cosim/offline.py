@@ -7,7 +7,9 @@ times, or at a generation cap. Then the best controller is "downloaded to the re
 drives the noisy world (`sim_world.world.DEFAULT_NOISE`) and we count the targets it reaches
 before its first crash (20 noise seeds). With ``noisy=NoisyStage(trials=K)`` (``--noisy-trials``,
 off by default) the GA goes on in the noisy world once the noise-free best reaches every target
-(`cosim.offline_noisy`, docs/offline.md round 3).
+(`cosim.offline_noisy`, docs/offline.md round 3). With ``robust=RobustStage(bias_deg=...)``
+(``--robust-bias-deg``, off by default) it goes on instead in deterministic perturbed worlds, a
+heading bias of +b and -b degrees a motion, level by level (`cosim.offline_robust`, round 4).
 
     python -m cosim.offline --seed 1 [--generations-cap G] [--workers W] [--resume]
                             [--out results/model_free] [--arena NAME] [--max-leg-steps N]
@@ -41,7 +43,7 @@ import numpy as np
 from cosim.checkpoint import load_checkpoint, save_checkpoint
 from cosim.offline_noisy import (TRANSFER_TRIALS, NoisyStage, Records, load_arena_arg, noisy_generation,
                                  transfer)
-from cosim.offline_robust import FrozenNoise, RobustStage
+from cosim.offline_robust import RobustStage
 from cosim.offline_report import plot_results, seeds_table  # noqa: F401 (seeds_table: the API)
 from cosim.runs import atomic_savefig, atomic_write_json
 from ga.evolution import GAConfig, GeneticAlgorithm
@@ -88,26 +90,16 @@ class Evaluation:
     failure_state: int | None = None  # the state the run ended in, if it crashed or got stuck
 
 
-def evaluate(world, rows, max_leg_steps: int, n_targets: int = N_TARGETS, reflex: bool = True,
-             max_failures: int = 0, leg_noise_seed=None) -> Evaluation:
+def evaluate(world, rows, max_leg_steps: int, n_targets: int = N_TARGETS, reflex: bool = True) -> Evaluation:
     """Drive ``world`` (a `sim_world.world.World`) with one genome through the course and score it
-    (`ga.model_free.model_free_fitness`). ``max_failures`` > 0: a crash or a time-out fails only its
-    leg and the run goes on, up to that many failed legs; R1 counts the clean legs (the robust
-    stage's graded runs, `cosim.offline_robust`)."""
+    (`ga.model_free.model_free_fitness`)."""
     rows = validate_rows(rows)
     if rows.ndim != 1:
         raise ValueError(f"evaluate takes one genome of shape (50,), got {rows.shape!r}")
-    table = truth_tables(rows, reflex=reflex)
-    if max_failures:
-        res = run_course(world, table, max_leg_steps, n_targets=n_targets, skip_failed_legs=True,
-                         max_failures=max_failures, leg_noise_seed=leg_noise_seed)
-        res.crashed, res.timed_out = res.crashes > 0, res.failed_legs > res.crashes
-        failure_state = res.failure_states[0] if res.failure_states else None
-    else:
-        res = run_course(world, table, max_leg_steps, n_targets=n_targets, leg_noise_seed=leg_noise_seed)
-        # After a crash the pose is restored, so the state now is the one whose motion crashed;
-        # after a time-out it is a state of the loop the robot was caught in.
-        failure_state = int(world.state()) if res.crashed or res.timed_out else None
+    res = run_course(world, truth_tables(rows, reflex=reflex), max_leg_steps, n_targets=n_targets)
+    # After a crash the pose is restored, so the state now is the one whose motion crashed; after
+    # a time-out it is a state of the loop the robot was caught in.
+    failed = res.crashed or res.timed_out
     fitness = model_free_fitness(res.targets_reached, res.final_distance_mm, world.arena.size_mm,
                                  res.steps, max_run_steps(max_leg_steps, n_targets))
     return Evaluation(
@@ -116,7 +108,7 @@ def evaluate(world, rows, max_leg_steps: int, n_targets: int = N_TARGETS, reflex
         final_distance_mm=float(res.final_distance_mm),
         states=frozenset(int(s) for s in res.states),
         transitions=frozenset(tuple(int(v) for v in t) for t in res.transitions),
-        failure_state=None if failure_state is None else int(failure_state),
+        failure_state=int(world.state()) if failed else None,
     )
 
 
@@ -125,17 +117,12 @@ _WORLDS: dict = {}
 
 def _world(arena: str, bias=None):
     """The noise-free world of ``arena``, with the systematic motor error ``bias`` (a
-    `sim_world.world.Bias`, the robust stage's scenarios) if given, or the noisy world of a
-    `cosim.offline_robust.FrozenNoise` scenario; one per process."""
-    from sim_world.world import DEFAULT_NOISE, World
+    `sim_world.world.Bias`, the robust stage's scenarios) if given; one per process."""
+    from sim_world.world import World
 
     world = _WORLDS.get((arena, bias))
     if world is None:
-        if isinstance(bias, FrozenNoise):
-            world = World(_load_arena(arena), noise=DEFAULT_NOISE, seed=0)
-        else:
-            world = World(_load_arena(arena), bias=bias)
-        _WORLDS[arena, bias] = world
+        world = _WORLDS[arena, bias] = World(_load_arena(arena), bias=bias)
     return world
 
 
@@ -143,9 +130,8 @@ _load_arena = load_arena_arg
 
 
 def _evaluate_one(task) -> Evaluation:
-    arena, max_leg_steps, n_targets, rows, bias, max_failures = task
-    return evaluate(_world(arena, bias), rows, max_leg_steps, n_targets, max_failures=max_failures,
-                    leg_noise_seed=bias.leg_seed if isinstance(bias, FrozenNoise) else None)
+    arena, max_leg_steps, n_targets, rows, bias = task
+    return evaluate(_world(arena, bias), rows, max_leg_steps, n_targets)
 
 
 class Evaluator:
@@ -164,11 +150,8 @@ class Evaluator:
             ctx = multiprocessing.get_context("spawn")
             self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=ctx)
 
-    def __call__(self, pop: np.ndarray, bias=None, max_leg_steps: int | None = None,
-                 max_failures: int = 0) -> list[Evaluation]:
-        """One Evaluation per genome, in order; ``bias``: in that perturbed world, ``max_leg_steps``:
-        with that leg limit instead of the run's, ``max_failures``: graded runs (`evaluate`; the
-        robust stage).
+    def __call__(self, pop: np.ndarray, bias=None) -> list[Evaluation]:
+        """One Evaluation per genome, in order; ``bias``: in that perturbed world (the robust stage).
 
         A run depends on the genome only through its truth table (reflex included), and the
         world is deterministic, so a genome whose table was evaluated recently (the elite, a
@@ -176,13 +159,12 @@ class Evaluator:
         being driven again: the same result, and `interactions` still counts it (paper: every
         individual of every generation). ``simulated_steps`` counts what was really driven.
         """
-        leg_steps = self.max_leg_steps if max_leg_steps is None else int(max_leg_steps)
-        keys = [(bias, leg_steps, max_failures, t.tobytes()) for t in truth_tables(pop, reflex=True)]
+        keys = [(bias, t.tobytes()) for t in truth_tables(pop, reflex=True)]
         todo = {}
         for key, rows in zip(keys, pop):
             if key not in self._cache and key not in todo:
                 todo[key] = rows
-        tasks = [(self.arena, leg_steps, self.n_targets, rows, bias, max_failures) for rows in todo.values()]
+        tasks = [(self.arena, self.max_leg_steps, self.n_targets, rows, bias) for rows in todo.values()]
         if self._pool is None:
             fresh = [_evaluate_one(t) for t in tasks]
         else:
@@ -239,7 +221,7 @@ def run_config(seed: int, arena: str, max_leg_steps: int, n_targets: int, ga_con
     return config
 
 
-def _fresh_state(ga: GeneticAlgorithm, ga_seed: int) -> dict:
+def _fresh_state(ga: GeneticAlgorithm) -> dict:
     return {
         "ga": ga.state_dict(),
         "interactions": 0,
@@ -249,7 +231,6 @@ def _fresh_state(ga: GeneticAlgorithm, ga_seed: int) -> dict:
         "history": [],
         "best": None,
         "wall_time_s": 0.0,
-        "seed": int(ga_seed),
         "stage": 1,  # 2: the noisy stage (cosim.offline_noisy) or the robust stage (cosim.offline_robust)
         "noisy": _fresh_noisy(),
         "robust": _fresh_robust(),
@@ -302,18 +283,16 @@ def _noisy_step(ga, pop, evaluator, noisy: NoisyStage, records: Records, state, 
                   "clean_runs": sum(r.clean for rs in runs for r in rs)}
 
 
-def _robust_step(ga, pop, evaluator, robust: RobustStage, state, arena, max_leg_steps, n_targets, states,
-                 transitions):
+def _robust_step(ga, pop, evaluator, robust: RobustStage, state, n_targets, states, transitions):
     """One generation of the robust stage (`cosim.offline_robust`): every individual in the
     level's perturbed worlds, fitness combined over them. The best is also driven noise-free
     (counted, for the summary and the history). When it reaches every target in every scenario
     the stage moves to the next level (or is done).
     Returns the noise-free Evaluation of the best and the history entry's robust fields."""
     level = state["robust"]["level"]
-    scenarios = robust.scenarios(level, state["seed"])
+    scenarios = robust.scenarios(level)
     driven = evaluator.simulated_steps
-    per_scenario = [evaluator(pop, bias=b, max_leg_steps=robust.max_leg_steps or None,
-                              max_failures=robust.max_failures) for b in scenarios]
+    per_scenario = [evaluator(pop, bias=b) for b in scenarios]
     fitness = np.array([robust.combined([evs[j].fitness for evs in per_scenario]) for j in range(len(pop))])
     failures = [next((evs[j].failure_state for evs in per_scenario if evs[j].failure_state is not None), None)
                 for j in range(len(pop))]
@@ -336,9 +315,6 @@ def _robust_step(ga, pop, evaluator, robust: RobustStage, state, arena, max_leg_
     fields = {"robust_level": level, "robust_bias_deg": robust.bias_deg[level], "robust_targets": targets,
               "robust_fitness": float(fitness[i])}
     state["best"] = _best_entry(pop[i], best, **fields)
-    first = state["robust"]["from_generation"]
-    if robust.validate_runs and ((ga.generation - first) % robust.validate_every == 0 or min(targets) >= n_targets):
-        _validate(evaluator, pop[i], robust, state, arena, max_leg_steps, n_targets)
     if min(targets) >= n_targets:
         state["robust"]["levels_passed"].append({"bias_deg": robust.bias_deg[level], "generation": ga.generation,
                                                  "interactions": state["interactions"]})
@@ -348,36 +324,6 @@ def _robust_step(ga, pop, evaluator, robust: RobustStage, state, arena, max_leg_
         else:
             state["robust"]["accepted"] = True
     return best, {"stage": 2, **fields}
-
-
-def _validate(evaluator, rows, robust: RobustStage, state, arena, max_leg_steps, n_targets) -> None:
-    """Drive the elite ``rows`` (state["best"]) on the stage's validation noise seeds, every leg
-    tried (`cosim.offline_noisy.drive_noisy`), once per truth table; counted as interactions.
-    The run's result is the validated elite with the fewest failed legs (`_validated_best`)."""
-    from cosim.offline_noisy import _drive_one, table_key
-
-    key = table_key(rows)
-    validated = state["robust"].setdefault("validated", {})
-    if key in validated:
-        return
-    tasks = [(arena, max_leg_steps, n_targets, rows, list(seed), n_targets)
-             for seed in robust.validation_seeds(state["seed"])]
-    runs = evaluator.map(_drive_one, tasks)
-    steps = sum(r.steps for r in runs)
-    state["interactions"] += steps
-    state["robust"]["interactions"] += steps
-    state["simulated_interactions"] += steps
-    validated[key] = {"failed_legs": sum(r.failed_legs for r in runs), "runs": len(runs),
-                      "order": len(validated), "best": dict(state["best"])}
-
-
-def _validated_best(state) -> dict | None:
-    """The validated elite with the fewest failed legs (the later one on a tie), or None."""
-    validated = state["robust"].get("validated") or {}
-    if not validated:
-        return None
-    pick = min(validated.values(), key=lambda v: (v["failed_legs"], -v["order"]))
-    return dict(pick["best"], validation_failed_legs=pick["failed_legs"], validation_runs=pick["runs"])
 
 
 def run_offline(
@@ -420,11 +366,10 @@ def run_offline(
         state.setdefault("stage", 1)  # a checkpoint written before the noisy stage existed
         state.setdefault("noisy", _fresh_noisy())
         state.setdefault("robust", _fresh_robust())
-        state.setdefault("seed", int(seed))
         ga = GeneticAlgorithm.from_state_dict(state["ga"], np.random.default_rng())
     else:
         ga = GeneticAlgorithm(ga_config, np.random.default_rng(seed))
-        state = _fresh_state(ga, seed)
+        state = _fresh_state(ga)
     states = set(state["world_states"])
     transitions = {tuple(t) for t in state["transitions"]}
     records = Records(state["noisy"]["records"])
@@ -458,8 +403,8 @@ def run_offline(
             while not finished() and ga.generation < generations_cap:
                 pop = ga.ask()
                 if state["stage"] == 2 and robust.enabled:
-                    best, entry_extra = _robust_step(ga, pop, evaluator, robust, state, arena, max_leg_steps,
-                                                     n_targets, states, transitions)
+                    best, entry_extra = _robust_step(ga, pop, evaluator, robust, state, n_targets, states,
+                                                     transitions)
                 elif state["stage"] == 2:
                     best, entry_extra = _noisy_step(ga, pop, evaluator, noisy, records, state, seed, arena,
                                                     max_leg_steps, n_targets, states, transitions)
@@ -513,9 +458,7 @@ def run_offline(
     finally:
         bar.close()
 
-    if robust.validate_runs and _validated_best(state) is not None:
-        state["best"] = _validated_best(state)  # the run's result: the best validated elite
-    elif robust.enabled and state["robust"].get("passed_best"):
+    if robust.enabled and state["robust"].get("passed_best"):
         # The run's result: the elite that passed the last level passed. An elite of a level
         # not passed yet may be better there and worse elsewhere (docs/offline.md, round 4).
         state["best"] = dict(state["robust"]["passed_best"])
@@ -550,8 +493,6 @@ def _summary(seed, state, config, ga_config: GAConfig, workers, reached_all) -> 
         "transition_outcomes": len(state["transitions"]),
         "best_fitness": best.get("fitness"),
         "best_steps": best.get("steps"),
-        **({"best_validation_failed_legs": best["validation_failed_legs"],
-            "best_validation_runs": best["validation_runs"]} if "validation_failed_legs" in best else {}),
         "best_genome": best.get("genome"),
         "wall_time_s": round(state["wall_time_s"], 3),
         "workers": int(workers),
@@ -638,28 +579,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
                              "(0.1: 10%% longer)")
     parser.add_argument("--robust-paired", action="store_true",
                         help="robust stage: one world per X, the bias sign alternating (+B, -B, ...)")
-    parser.add_argument("--robust-noise-free", action="store_true",
-                        help="robust stage: the unperturbed world is one more scenario")
     parser.add_argument("--robust-combine", choices=("sum", "min"), default=DEFAULT_ROBUST.combine,
                         help="robust stage: the fitness over the scenarios")
-    parser.add_argument("--robust-max-leg-steps", type=int, default=DEFAULT_ROBUST.max_leg_steps,
-                        help="robust stage: the leg limit in its scenarios (0: --max-leg-steps); a lower one "
-                             "leaves slack for the noise's slower legs")
     parser.add_argument("--robust-budget-factor", type=float, default=DEFAULT_ROBUST.budget_factor,
                         help="robust stage: it ends once the whole run has spent this many times the "
                              "interactions of its noise-free stage (0: no limit)")
-    parser.add_argument("--robust-frozen-noise", type=int, default=DEFAULT_ROBUST.frozen_noise,
-                        help="robust stage: this many scenarios more in the noisy world with the same noise "
-                             "seeds in every generation (cosim.offline_robust.FrozenNoise)")
-    parser.add_argument("--robust-validate-runs", type=int, default=DEFAULT_ROBUST.validate_runs,
-                        help="robust stage: drive the elite on this many noisy validation runs (every leg, "
-                             "counted) every --robust-validate-every generations and at each level passed; the "
-                             "result is the validated elite with the fewest failed legs (0: the last elite)")
-    parser.add_argument("--robust-validate-every", type=int, default=DEFAULT_ROBUST.validate_every,
-                        help="robust stage: generations between validations")
-    parser.add_argument("--robust-max-failures", type=int, default=DEFAULT_ROBUST.max_failures,
-                        help="robust stage: graded runs, a failure ends only its leg, up to this many failed "
-                             "legs (0: a run ends at its first failure)")
     parser.add_argument("--robust-max-generations", type=int, default=DEFAULT_ROBUST.max_generations,
                         help="robust stage: its generation cap (then the elite is the result)")
     parser.add_argument("--robust-budget", type=int, default=DEFAULT_ROBUST.budget,

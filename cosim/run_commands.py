@@ -221,8 +221,7 @@ def cmd_offline(args, extras: dict, sub=None) -> int:
         return print_table(args.table)
     for name, least in (("generations_cap", 1), ("workers", 1), ("max_leg_steps", 1), ("seed", 0),
                         ("noisy_trials", 0), ("noisy_accept_runs", 1), ("noisy_max_failures", 1), ("noisy_max_generations", 1), ("noisy_race", 0), ("noisy_budget", 0),
-                        ("robust_max_generations", 1), ("robust_budget", 0), ("robust_max_leg_steps", 0), ("robust_max_failures", 0), ("robust_frozen_noise", 0), ("robust_validate_runs", 0),
-                        ("robust_validate_every", 1), ("transfer_trials", 0)):
+                        ("robust_max_generations", 1), ("robust_budget", 0), ("transfer_trials", 0)):
         if getattr(args, name) < least:
             raise UserError(f"--{name.replace('_', '-')} must be at least {least}, got {getattr(args, name)!r}")
     robust_stage(args)  # its checks, before anything is written
@@ -275,12 +274,9 @@ def robust_stage(args):
 
     try:
         stage = RobustStage(bias_deg=args.robust_bias_deg, translations=args.robust_translations,
-                            noise_free=args.robust_noise_free, paired=args.robust_paired,
+                            paired=args.robust_paired,
                             combine=args.robust_combine, max_generations=args.robust_max_generations,
-                            budget=args.robust_budget, budget_factor=args.robust_budget_factor,
-                            max_leg_steps=args.robust_max_leg_steps, max_failures=args.robust_max_failures,
-                            frozen_noise=args.robust_frozen_noise, validate_runs=args.robust_validate_runs,
-                            validate_every=args.robust_validate_every)
+                            budget=args.robust_budget, budget_factor=args.robust_budget_factor)
     except ValueError as exc:
         raise UserError(f"--robust-*: {exc}") from None
     if stage.enabled and args.noisy_trials:

@@ -42,12 +42,14 @@ def test_a_bias_turns_and_stretches_every_motion_the_same_way():
 def test_the_stage_has_two_mirrored_scenarios_a_level_and_checks_its_parameters():
     plus, minus = STAGE.scenarios(1)
     assert plus == Bias(3.0, 1.1) and minus == Bias(-3.0, 1.1)
-    assert RobustStage(bias_deg=(2,), translations=(0.1, -0.1), noise_free=True).scenarios(0) == \
-        (Bias(2.0, 1.1), Bias(-2.0, 1.1), Bias(2.0, 0.9), Bias(-2.0, 0.9), None)
+    assert RobustStage(bias_deg=(2,), translations=(0.1, -0.1)).scenarios(0) == \
+        (Bias(2.0, 1.1), Bias(-2.0, 1.1), Bias(2.0, 0.9), Bias(-2.0, 0.9))
+    assert RobustStage(bias_deg=(2,), translations=(0.1, -0.1), paired=True).scenarios(0) == \
+        (Bias(2.0, 1.1), Bias(-2.0, 0.9))
     assert STAGE.combined([2.0, 5.0]) == 7.0 and RobustStage(bias_deg=(1,), combine="min").combined([2.0, 5.0]) == 2.0
     assert not RobustStage().enabled and STAGE.levels == 2
     for bad in (dict(bias_deg=(0.0,)), dict(bias_deg=(50,)), dict(translations=(0.7,)), dict(translations=()), dict(combine="mean"),
-                dict(max_generations=0), dict(budget=-1)):
+                dict(max_generations=0), dict(budget=-1), dict(budget_factor=0.5)):
         with pytest.raises(ValueError):
             RobustStage(**bad)
 
@@ -113,6 +115,19 @@ def test_the_budget_ends_the_robust_stage(tmp_path):
     assert not r["accepted"] and r["generations"] == 1 and s["interactions"] >= budget
 
 
+def test_a_level_left_half_done_returns_the_elite_of_the_level_before(tmp_path):
+    """The result is the elite that passed the last level passed; the budget factor ends the run."""
+    stage = RobustStage(bias_deg=(1.0, 20.0), translations=(0.1,), combine="min", budget_factor=30.0)
+    s = run_offline(1, generations_cap=300, out=tmp_path, robust=stage, **SMALL)
+    r = s["robust_stage"]
+    noise_free = r["noise_free_best"]["run_interactions"]
+    assert [lv["bias_deg"] for lv in r["levels_passed"]] == [1.0] and not r["accepted"]
+    assert 30 * noise_free <= s["interactions"] and s["generations"] < 300
+    assert r["robust_level"] == 0 and r["robust_targets"] == [6, 6]  # the level-1 elite, not the last
+    history = json.loads((tmp_path / "history.json").read_text())
+    assert history[-1]["robust_level"] == 1 and min(history[-1]["robust_targets"]) < 6
+
+
 def test_the_command_line_checks_the_robust_options(tmp_path, monkeypatch, capsys):
     from cosim.cli import main
 
@@ -127,32 +142,3 @@ def test_the_command_line_checks_the_robust_options(tmp_path, monkeypatch, capsy
         err = capsys.readouterr().err.strip().splitlines()
         assert status == 2 and len(err) == 1 and err[0].startswith("error: ") and word in err[0], (args, err)
     assert not (tmp_path / "run" / "summary.json").exists()
-
-
-def test_frozen_noise_scenarios_are_noisy_but_the_same_every_time():
-    from cosim.offline import _evaluate_one
-    from cosim.offline_robust import FrozenNoise
-    from ga.operators import random_population
-
-    stage = RobustStage(bias_deg=(2.0,), frozen_noise=2)
-    *_, a, b = stage.scenarios(0, seed=7)
-    assert a == FrozenNoise((170018, 7, 0)) and b == FrozenNoise((170018, 7, 1))
-    rows = random_population(np.random.default_rng(1), 1)[0]
-    runs = [_evaluate_one(("one_obstacle", 80, 6, rows, s, 3)) for s in (a, a, b)]
-    assert runs[0] == runs[1]
-    plain = _evaluate_one(("one_obstacle", 80, 6, rows, None, 3))
-    assert runs[0].steps > 0 and (runs[0] != plain or runs[2] != plain)
-
-
-def test_validation_picks_the_elite_with_the_fewest_failed_legs_and_is_counted(tmp_path):
-    stage = RobustStage(bias_deg=(1.0, 3.0), translations=(0.1,), validate_runs=2, validate_every=1)
-    plain = run_offline(1, generations_cap=300, out=tmp_path / "a", robust=STAGE, **SMALL)
-    checked = run_offline(1, generations_cap=300, out=tmp_path / "b", robust=stage, **SMALL)
-    # The same evolution (validation draws nothing from the GA's generator), more interactions.
-    assert checked["generations"] == plain["generations"]
-    assert checked["interactions"] > plain["interactions"]
-    ck = json.loads((tmp_path / "b" / "checkpoint.json").read_text())
-    validated = (ck.get("state") or ck)["robust"]["validated"]
-    assert len(validated) >= 2
-    fewest = min(v["failed_legs"] for v in validated.values())
-    assert checked["best_validation_failed_legs"] == fewest
