@@ -24,8 +24,8 @@ error (`sim_world.world.Bias`), docs/offline.md round 4:
   stage moves to the next bias of ``bias_deg`` (a schedule: 2, 3, 4 degrees); after the last one
   the run ends. Otherwise it ends after ``max_generations`` of the stage or once the whole run
   has spent ``budget`` interactions (or ``budget_factor`` times those of its noise-free stage),
-  and the result is the elite that passed the last level passed (an elite of the level under
-  way may be better there and worse elsewhere), or the elite if no level was passed.
+  and the result is the elite that passed the last level passed, or the noise-free best if no
+  level was passed (an elite of the level under way may be better there and worse elsewhere).
 
 Every motion of every scenario is an interaction of the off-line method (issue 17's rule).
 """

@@ -113,6 +113,9 @@ def test_the_budget_ends_the_robust_stage(tmp_path):
                     **SMALL)
     r = s["robust_stage"]
     assert not r["accepted"] and r["generations"] == 1 and s["interactions"] >= budget
+    # No level passed: the result is the noise-free best the stage started from.
+    assert s["best_genome"] == r["noise_free_best"]["genome"] and s["reached_all_targets"]
+    assert s["best_genome"] == plain["best_genome"]
 
 
 def test_a_level_left_half_done_returns_the_elite_of_the_level_before(tmp_path):
