@@ -43,7 +43,8 @@ import numpy as np
 from cosim.checkpoint import load_checkpoint, save_checkpoint
 from cosim.offline_noisy import (TRANSFER_TRIALS, NoisyStage, Records, load_arena_arg, noisy_generation,
                                  transfer)
-from cosim.offline_robust import RobustStage
+from cosim.offline_robust import (RobustStage, add_robust_arguments, robust_finished, robust_result, robust_step,
+                                  robust_summary)
 from cosim.offline_report import plot_results, seeds_table  # noqa: F401 (seeds_table: the API)
 from cosim.runs import atomic_savefig, atomic_write_json
 from ga.evolution import GAConfig, GeneticAlgorithm
@@ -62,8 +63,6 @@ DEFAULT_GENERATIONS_CAP = 3000
 DEFAULT_MAX_LEG_STEPS = 150
 # The noisy stage after the noise-free evolution (cosim.offline_noisy; docs/offline.md, issue 17).
 DEFAULT_NOISY = NoisyStage()
-# The robust stage after it (cosim.offline_robust; docs/offline.md round 4).
-DEFAULT_ROBUST = RobustStage()
 
 def default_ga_config(**overrides) -> GAConfig:
     """Paper section 5.1: population 20, tournament 5, elitism 1; our operator rates, plus the
@@ -283,49 +282,6 @@ def _noisy_step(ga, pop, evaluator, noisy: NoisyStage, records: Records, state, 
                   "clean_runs": sum(r.clean for rs in runs for r in rs)}
 
 
-def _robust_step(ga, pop, evaluator, robust: RobustStage, state, n_targets, states, transitions):
-    """One generation of the robust stage (`cosim.offline_robust`): every individual in the
-    level's perturbed worlds, fitness combined over them. The best is also driven noise-free
-    (counted, for the summary and the history). When it reaches every target in every scenario
-    the stage moves to the next level (or is done).
-    Returns the noise-free Evaluation of the best and the history entry's robust fields."""
-    level = state["robust"]["level"]
-    scenarios = robust.scenarios(level)
-    driven = evaluator.simulated_steps
-    per_scenario = [evaluator(pop, bias=b) for b in scenarios]
-    fitness = np.array([robust.combined([evs[j].fitness for evs in per_scenario]) for j in range(len(pop))])
-    failures = [next((evs[j].failure_state for evs in per_scenario if evs[j].failure_state is not None), None)
-                for j in range(len(pop))]
-    ga.tell(fitness, failures=failures)
-    i = int(np.argmax(fitness))
-    steps = 0
-    for evs in per_scenario:
-        for e in evs:
-            states |= e.states
-            transitions |= e.transitions
-            steps += e.steps
-    best = evaluator(pop[i:i + 1])[0]  # noise-free (cached by truth table)
-    states |= best.states
-    transitions |= best.transitions
-    steps += best.steps
-    state["interactions"] += steps
-    state["robust"]["interactions"] += steps
-    state["simulated_interactions"] += evaluator.simulated_steps - driven
-    targets = [int(evs[i].targets_reached) for evs in per_scenario]
-    fields = {"robust_level": level, "robust_bias_deg": robust.bias_deg[level], "robust_targets": targets,
-              "robust_fitness": float(fitness[i])}
-    state["best"] = _best_entry(pop[i], best, **fields)
-    if min(targets) >= n_targets:
-        state["robust"]["levels_passed"].append({"bias_deg": robust.bias_deg[level], "generation": ga.generation,
-                                                 "interactions": state["interactions"]})
-        state["robust"]["passed_best"] = dict(state["best"])
-        if level + 1 < robust.levels:
-            state["robust"]["level"] = level + 1
-        else:
-            state["robust"]["accepted"] = True
-    return best, {"stage": 2, **fields}
-
-
 def run_offline(
     seed: int,
     *,
@@ -356,7 +312,7 @@ def run_offline(
     out.mkdir(parents=True, exist_ok=True)
     ga_config = ga_config or default_ga_config()
     noisy = DEFAULT_NOISY if noisy is None else noisy
-    robust = DEFAULT_ROBUST if robust is None else robust
+    robust = RobustStage() if robust is None else robust  # none by default (the paper's method)
     if noisy.trials and robust.enabled:
         raise ValueError("the noisy stage and the robust stage exclude each other: choose one")
     config = run_config(seed, arena, max_leg_steps, n_targets, ga_config, noisy, robust)
@@ -387,13 +343,7 @@ def run_offline(
                 ga.generation - first + 1 >= noisy.max_generations
                 or 0 < noisy.budget <= state["noisy"]["interactions"]))
         if robust.enabled:
-            first = state["robust"]["from_generation"]
-            if first is None:
-                return False
-            noise_free = state["robust"]["noise_free_best"]["run_interactions"]
-            return state["robust"]["accepted"] or ga.generation - first + 1 >= robust.max_generations \
-                or 0 < robust.budget <= state["interactions"] \
-                or 0 < robust.budget_factor * noise_free <= state["interactions"]
+            return robust_finished(robust, state, ga.generation)
         return reached_all()
 
     bar = tqdm(total=generations_cap, initial=min(ga.generation, generations_cap), disable=not progress,
@@ -403,8 +353,8 @@ def run_offline(
             while not finished() and ga.generation < generations_cap:
                 pop = ga.ask()
                 if state["stage"] == 2 and robust.enabled:
-                    best, entry_extra = _robust_step(ga, pop, evaluator, robust, state, n_targets, states,
-                                                     transitions)
+                    best, entry_extra = robust_step(ga, pop, evaluator, robust, state, n_targets, states,
+                                                    transitions, _best_entry)
                 elif state["stage"] == 2:
                     best, entry_extra = _noisy_step(ga, pop, evaluator, noisy, records, state, seed, arena,
                                                     max_leg_steps, n_targets, states, transitions)
@@ -459,13 +409,7 @@ def run_offline(
         bar.close()
 
     if robust.enabled and state["robust"]["from_generation"] is not None:
-        # The run's result: the elite that passed the last level passed, or the noise-free best
-        # (level 0) if none was. An elite of a level not passed yet may be better there and
-        # worse elsewhere (docs/offline.md, round 4: 0.12-0.24 failed legs a leg, against 0.067).
-        passed = state["robust"].get("passed_best")
-        if passed is None:
-            passed = {k: v for k, v in state["robust"]["noise_free_best"].items() if k != "run_interactions"}
-        state["best"] = dict(passed)
+        state["best"] = robust_result(state)  # the elite of the last level passed
     summary = _summary(seed, state, config, ga_config, workers, reached_all())
     if transfer_trials:
         summary["transfer"] = transfer(summary["best_genome"], arena, max_leg_steps, n_targets, seed,
@@ -504,21 +448,8 @@ def _summary(seed, state, config, ga_config: GAConfig, workers, reached_all) -> 
         "config": config,
         "paper": PAPER,
         **({"noisy_stage": _noisy_summary(state, generations)} if "noisy_stage" in config else {}),
-        **({"robust_stage": _robust_summary(state, generations)} if "robust_stage" in config else {}),
+        **({"robust_stage": robust_summary(state, generations)} if "robust_stage" in config else {}),
     }
-
-
-def _robust_summary(state, generations: int) -> dict:
-    """What the robust stage did: from which generation, its interactions (in ``interactions``
-    already), the levels passed, whether the last was, the final best's targets in the perturbed
-    worlds, the noise-free best it started from."""
-    robust, best = state["robust"], state["best"] or {}
-    first = robust["from_generation"]
-    return {"from_generation": first, "generations": 0 if first is None else generations - first + 1,
-            "interactions": robust["interactions"], "accepted": robust["accepted"],
-            "levels_passed": robust["levels_passed"],
-            **{k: best[k] for k in ("robust_level", "robust_bias_deg", "robust_targets") if k in best},
-            "noise_free_best": robust["noise_free_best"]}
 
 
 def _noisy_summary(state, generations: int) -> dict:
@@ -534,20 +465,6 @@ def _noisy_summary(state, generations: int) -> dict:
 
 
 # -- Command line --------------------------------------------------------------------------------
-
-
-def _float_list(text: str) -> tuple[float, ...]:
-    """Comma-separated numbers."""
-    try:
-        return tuple(float(v) for v in text.split(",") if v.strip())
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected numbers separated by commas, got {text!r}") from None
-
-
-def _bias_list(text: str) -> tuple[float, ...]:
-    """``--robust-bias-deg``: comma-separated degrees ("" or "0": no robust stage)."""
-    values = _float_list(text)
-    return () if values == (0.0,) else values
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
@@ -573,25 +490,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
                         help="noisy stage: seeds of the champion/challenger race for the elite (0: none)")
     parser.add_argument("--noisy-budget", type=int, default=DEFAULT_NOISY.budget,
                         help="noisy stage: it ends once it has spent this many interactions (0: no limit)")
-    parser.add_argument("--robust-bias-deg", type=_bias_list, default=DEFAULT_ROBUST.bias_deg, metavar="B[,B...]",
-                        help="the robust stage (cosim.offline_robust): once the noise-free best reaches every "
-                             "target, evolve in two worlds with a heading bias of +B and -B degrees a motion; "
-                             "a list is a schedule of levels (empty: none)")
-    parser.add_argument("--robust-translations", type=_float_list, default=DEFAULT_ROBUST.translations,
-                        metavar="X[,X...]",
-                        help="robust stage: the +B and -B worlds for each X, their steps scaled by 1 + X "
-                             "(0.1: 10%% longer)")
-    parser.add_argument("--robust-paired", action="store_true",
-                        help="robust stage: one world per X, the bias sign alternating (+B, -B, ...)")
-    parser.add_argument("--robust-combine", choices=("sum", "min"), default=DEFAULT_ROBUST.combine,
-                        help="robust stage: the fitness over the scenarios")
-    parser.add_argument("--robust-budget-factor", type=float, default=DEFAULT_ROBUST.budget_factor,
-                        help="robust stage: it ends once the whole run has spent this many times the "
-                             "interactions of its noise-free stage (0: no limit)")
-    parser.add_argument("--robust-max-generations", type=int, default=DEFAULT_ROBUST.max_generations,
-                        help="robust stage: its generation cap (then the elite is the result)")
-    parser.add_argument("--robust-budget", type=int, default=DEFAULT_ROBUST.budget,
-                        help="robust stage: it ends once the whole run has spent this many interactions (0: no limit)")
+    add_robust_arguments(parser)
     parser.add_argument("--transfer-trials", type=int, default=TRANSFER_TRIALS,
                         help="noisy-world runs of the final controller (noise seeds seed*1000+i)")
     parser.add_argument("--no-plots", action="store_true",

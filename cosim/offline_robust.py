@@ -35,6 +35,8 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass
 
+import numpy as np
+
 from sim_world.world import Bias
 
 COMBINES = ("sum", "min")
@@ -96,3 +98,126 @@ class RobustStage:
         d["bias_deg"] = list(self.bias_deg)
         d["translations"] = list(self.translations)
         return d
+
+
+def robust_step(ga, pop, evaluator, robust: RobustStage, state, n_targets, states, transitions, best_entry):
+    """One generation of the robust stage in `cosim.offline.run_offline`: every individual in the
+    level's perturbed worlds (``evaluator(pop, bias=...)``, a `cosim.offline.Evaluator`), fitness
+    combined over them. The best is also driven noise-free (counted, for the summary and the
+    history); ``best_entry(rows, evaluation, **fields)`` makes ``state["best"]``. When the best
+    reaches every target in every scenario the stage moves to the next level (or is done).
+    Returns the noise-free Evaluation of the best and the history entry's robust fields."""
+    level = state["robust"]["level"]
+    scenarios = robust.scenarios(level)
+    driven = evaluator.simulated_steps
+    per_scenario = [evaluator(pop, bias=b) for b in scenarios]
+    fitness = np.array([robust.combined([evs[j].fitness for evs in per_scenario]) for j in range(len(pop))])
+    failures = [next((evs[j].failure_state for evs in per_scenario if evs[j].failure_state is not None), None)
+                for j in range(len(pop))]
+    ga.tell(fitness, failures=failures)
+    i = int(np.argmax(fitness))
+    steps = 0
+    for evs in per_scenario:
+        for e in evs:
+            states |= e.states
+            transitions |= e.transitions
+            steps += e.steps
+    best = evaluator(pop[i:i + 1])[0]  # noise-free (cached by truth table)
+    states |= best.states
+    transitions |= best.transitions
+    steps += best.steps
+    state["interactions"] += steps
+    state["robust"]["interactions"] += steps
+    state["simulated_interactions"] += evaluator.simulated_steps - driven
+    targets = [int(evs[i].targets_reached) for evs in per_scenario]
+    fields = {"robust_level": level, "robust_bias_deg": robust.bias_deg[level], "robust_targets": targets,
+              "robust_fitness": float(fitness[i])}
+    state["best"] = best_entry(pop[i], best, **fields)
+    if min(targets) >= n_targets:
+        state["robust"]["levels_passed"].append({"bias_deg": robust.bias_deg[level], "generation": ga.generation,
+                                                 "interactions": state["interactions"]})
+        state["robust"]["passed_best"] = dict(state["best"])
+        if level + 1 < robust.levels:
+            state["robust"]["level"] = level + 1
+        else:
+            state["robust"]["accepted"] = True
+    return best, {"stage": 2, **fields}
+
+
+
+
+def robust_summary(state, generations: int) -> dict:
+    """What the robust stage did: from which generation, its interactions (in ``interactions``
+    already), the levels passed, whether the last was, the final best's targets in the perturbed
+    worlds, the noise-free best it started from."""
+    robust, best = state["robust"], state["best"] or {}
+    first = robust["from_generation"]
+    return {"from_generation": first, "generations": 0 if first is None else generations - first + 1,
+            "interactions": robust["interactions"], "accepted": robust["accepted"],
+            "levels_passed": robust["levels_passed"],
+            **{k: best[k] for k in ("robust_level", "robust_bias_deg", "robust_targets") if k in best},
+            "noise_free_best": robust["noise_free_best"]}
+
+def robust_finished(robust: RobustStage, state, generation: int) -> bool:
+    """Whether the stage is over: the last level passed, or a cap or budget reached."""
+    first = state["robust"]["from_generation"]
+    if first is None:
+        return False
+    noise_free = state["robust"]["noise_free_best"]["run_interactions"]
+    return state["robust"]["accepted"] or generation - first + 1 >= robust.max_generations \
+        or 0 < robust.budget <= state["interactions"] \
+        or 0 < robust.budget_factor * noise_free <= state["interactions"]
+
+
+def robust_result(state) -> dict:
+    """The run's result: the elite that passed the last level passed, or the noise-free best
+    (level 0) if none was. An elite of a level not passed yet may be better there and worse
+    elsewhere (docs/offline.md, round 4: 0.12-0.24 failed legs a leg, against 0.067)."""
+    passed = state["robust"].get("passed_best")
+    if passed is None:
+        passed = {k: v for k, v in state["robust"]["noise_free_best"].items() if k != "run_interactions"}
+    return dict(passed)
+
+
+# -- Command line --------------------------------------------------------------------------------
+
+
+def numbers(text: str, what: str) -> tuple[float, ...]:
+    """Comma-separated numbers (an option's text); ValueError naming ``what`` if not."""
+    try:
+        return tuple(float(v) for v in str(text).split(",") if v.strip())
+    except ValueError:
+        raise ValueError(f"{what}: expected numbers separated by commas, got {text!r}") from None
+
+
+def add_robust_arguments(parser) -> None:
+    """The robust stage's options of ``ehw offline`` (text kept as given, so that a run's
+    config.toml reads back; `stage_from_args` parses and checks them)."""
+    parser.add_argument("--robust-bias-deg", default="", metavar="B[,B...]",
+                        help="the robust stage (cosim.offline_robust): once the noise-free best reaches every "
+                             "target, evolve in worlds with a heading bias of +B and -B degrees a motion; "
+                             "a list is a schedule of levels (empty or 0: none)")
+    parser.add_argument("--robust-translations", default="0", metavar="X[,X...]",
+                        help="robust stage: the +B and -B worlds for each X, their steps scaled by 1 + X "
+                             "(0.1: 10%% longer)")
+    parser.add_argument("--robust-paired", action="store_true",
+                        help="robust stage: one world per X, the bias sign alternating (+B, -B, ...)")
+    parser.add_argument("--robust-combine", choices=COMBINES, default="sum",
+                        help="robust stage: the fitness over the scenarios")
+    parser.add_argument("--robust-budget-factor", type=float, default=0.0,
+                        help="robust stage: it ends once the whole run has spent this many times the "
+                             "interactions of its noise-free stage (0: no limit)")
+    parser.add_argument("--robust-max-generations", type=int, default=RobustStage.max_generations,
+                        help="robust stage: its generation cap")
+    parser.add_argument("--robust-budget", type=int, default=0,
+                        help="robust stage: it ends once the whole run has spent this many interactions (0: no limit)")
+
+
+def stage_from_args(args) -> RobustStage:
+    """The RobustStage of parsed ``add_robust_arguments`` options; ValueError if bad."""
+    bias = numbers(args.robust_bias_deg, "--robust-bias-deg")
+    return RobustStage(bias_deg=() if bias == (0.0,) else bias,
+                       translations=numbers(args.robust_translations, "--robust-translations"),
+                       paired=args.robust_paired, combine=args.robust_combine,
+                       max_generations=args.robust_max_generations, budget=args.robust_budget,
+                       budget_factor=args.robust_budget_factor)

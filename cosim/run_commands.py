@@ -270,13 +270,10 @@ def noisy_stage(args):
 
 def robust_stage(args):
     """The off-line run's robust stage from parsed ``args`` (``--robust-*``); UserError if bad."""
-    from cosim.offline_robust import RobustStage
+    from cosim.offline_robust import stage_from_args
 
     try:
-        stage = RobustStage(bias_deg=args.robust_bias_deg, translations=args.robust_translations,
-                            paired=args.robust_paired,
-                            combine=args.robust_combine, max_generations=args.robust_max_generations,
-                            budget=args.robust_budget, budget_factor=args.robust_budget_factor)
+        stage = stage_from_args(args)
     except ValueError as exc:
         raise UserError(f"--robust-*: {exc}") from None
     if stage.enabled and args.noisy_trials:

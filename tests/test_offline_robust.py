@@ -145,3 +145,17 @@ def test_the_command_line_checks_the_robust_options(tmp_path, monkeypatch, capsy
         err = capsys.readouterr().err.strip().splitlines()
         assert status == 2 and len(err) == 1 and err[0].startswith("error: ") and word in err[0], (args, err)
     assert not (tmp_path / "run" / "summary.json").exists()
+
+
+def test_a_robust_run_resumes_with_its_options_from_config_toml(tmp_path, monkeypatch, capsys):
+    from cosim.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    tiny = ["--arena", "empty", "--max-leg-steps", "40", "--quiet", "--no-plots", "--transfer-trials", "0"]
+    robust = ["--robust-bias-deg", "2,3", "--robust-translations=0.1,-0.1", "--robust-paired", "--robust-combine", "min"]
+    assert main(["offline", *tiny, *robust, "--generations-cap", "1", "--out", "run"]) == 0
+    assert 'robust_bias_deg = "2,3"' in (tmp_path / "run/config.toml").read_text()
+    assert main(["offline", "--resume", "--out", "run", "--generations-cap", "2"]) == 0
+    summary = json.loads((tmp_path / "run/summary.json").read_text())
+    assert summary["generations"] == 2
+    assert summary["config"]["robust_stage"]["bias_deg"] == [2.0, 3.0] and summary["config"]["robust_stage"]["paired"]
