@@ -7,9 +7,7 @@ times, or at a generation cap. Then the best controller is "downloaded to the re
 drives the noisy world (`sim_world.world.DEFAULT_NOISE`) and we count the targets it reaches
 before its first crash (20 noise seeds). With ``noisy=NoisyStage(trials=K)`` (``--noisy-trials``,
 off by default) the GA goes on in the noisy world once the noise-free best reaches every target
-(`cosim.offline_noisy`, docs/offline.md round 3). With ``robust=RobustStage(bias_deg=...)``
-(``--robust-bias-deg``, off by default) it goes on instead in deterministic perturbed worlds, a
-heading bias of +b and -b degrees a motion, level by level (`cosim.offline_robust`, round 4).
+(`cosim.offline_noisy`, docs/offline.md round 3).
 
     python -m cosim.offline --seed 1 [--generations-cap G] [--workers W] [--resume]
                             [--out results/model_free] [--arena NAME] [--max-leg-steps N]
@@ -43,8 +41,6 @@ import numpy as np
 from cosim.checkpoint import load_checkpoint, save_checkpoint
 from cosim.offline_noisy import (TRANSFER_TRIALS, NoisyStage, Records, load_arena_arg, noisy_generation,
                                  transfer)
-from cosim.offline_robust import (RobustStage, add_robust_arguments, robust_finished, robust_result, robust_step,
-                                  robust_summary)
 from cosim.offline_report import plot_results, seeds_table  # noqa: F401 (seeds_table: the API)
 from cosim.runs import atomic_savefig, atomic_write_json
 from ga.evolution import GAConfig, GeneticAlgorithm
@@ -114,14 +110,12 @@ def evaluate(world, rows, max_leg_steps: int, n_targets: int = N_TARGETS, reflex
 _WORLDS: dict = {}
 
 
-def _world(arena: str, bias=None):
-    """The noise-free world of ``arena``, with the systematic motor error ``bias`` (a
-    `sim_world.world.Bias`, the robust stage's scenarios) if given; one per process."""
+def _world(arena: str):
     from sim_world.world import World
 
-    world = _WORLDS.get((arena, bias))
+    world = _WORLDS.get(arena)
     if world is None:
-        world = _WORLDS[arena, bias] = World(_load_arena(arena), bias=bias)
+        world = _WORLDS[arena] = World(_load_arena(arena))
     return world
 
 
@@ -129,8 +123,8 @@ _load_arena = load_arena_arg
 
 
 def _evaluate_one(task) -> Evaluation:
-    arena, max_leg_steps, n_targets, rows, bias = task
-    return evaluate(_world(arena, bias), rows, max_leg_steps, n_targets)
+    arena, max_leg_steps, n_targets, rows = task
+    return evaluate(_world(arena), rows, max_leg_steps, n_targets)
 
 
 class Evaluator:
@@ -149,8 +143,8 @@ class Evaluator:
             ctx = multiprocessing.get_context("spawn")
             self._pool = ProcessPoolExecutor(max_workers=self.workers, mp_context=ctx)
 
-    def __call__(self, pop: np.ndarray, bias=None) -> list[Evaluation]:
-        """One Evaluation per genome, in order; ``bias``: in that perturbed world (the robust stage).
+    def __call__(self, pop: np.ndarray) -> list[Evaluation]:
+        """One Evaluation per genome, in order.
 
         A run depends on the genome only through its truth table (reflex included), and the
         world is deterministic, so a genome whose table was evaluated recently (the elite, a
@@ -158,12 +152,12 @@ class Evaluator:
         being driven again: the same result, and `interactions` still counts it (paper: every
         individual of every generation). ``simulated_steps`` counts what was really driven.
         """
-        keys = [(bias, t.tobytes()) for t in truth_tables(pop, reflex=True)]
+        keys = [t.tobytes() for t in truth_tables(pop, reflex=True)]
         todo = {}
         for key, rows in zip(keys, pop):
             if key not in self._cache and key not in todo:
                 todo[key] = rows
-        tasks = [(self.arena, self.max_leg_steps, self.n_targets, rows, bias) for rows in todo.values()]
+        tasks = [(self.arena, self.max_leg_steps, self.n_targets, rows) for rows in todo.values()]
         if self._pool is None:
             fresh = [_evaluate_one(t) for t in tasks]
         else:
@@ -203,7 +197,7 @@ def _arena_digest(arena: str) -> str:
 
 
 def run_config(seed: int, arena: str, max_leg_steps: int, n_targets: int, ga_config: GAConfig,
-               noisy: NoisyStage | None = None, robust: RobustStage | None = None) -> dict:
+               noisy: NoisyStage | None = None) -> dict:
     """The parameters that define a run: a checkpoint resumes only under the same ones."""
     config = {
         "seed": int(seed),
@@ -215,8 +209,6 @@ def run_config(seed: int, arena: str, max_leg_steps: int, n_targets: int, ga_con
     }
     if noisy is not None and noisy.trials:
         config["noisy_stage"] = noisy.to_dict()
-    if robust is not None and robust.enabled:
-        config["robust_stage"] = robust.to_dict()
     return config
 
 
@@ -230,15 +222,9 @@ def _fresh_state(ga: GeneticAlgorithm) -> dict:
         "history": [],
         "best": None,
         "wall_time_s": 0.0,
-        "stage": 1,  # 2: the noisy stage (cosim.offline_noisy) or the robust stage (cosim.offline_robust)
+        "stage": 1,  # 2: the noisy stage (cosim.offline_noisy)
         "noisy": _fresh_noisy(),
-        "robust": _fresh_robust(),
     }
-
-
-def _fresh_robust() -> dict:
-    return {"level": 0, "from_generation": None, "interactions": 0, "noise_free_best": None,
-            "accepted": False, "levels_passed": []}
 
 
 def _fresh_noisy() -> dict:
@@ -298,7 +284,6 @@ def run_offline(
     transfer_trials: int = TRANSFER_TRIALS,
     on_generation: Callable[[dict], None] | None = None,
     noisy: NoisyStage | None = None,
-    robust: RobustStage | None = None,
 ) -> dict:
     """Run (or, with ``resume``, continue) the model-free experiment; return the summary dict.
 
@@ -312,16 +297,12 @@ def run_offline(
     out.mkdir(parents=True, exist_ok=True)
     ga_config = ga_config or default_ga_config()
     noisy = DEFAULT_NOISY if noisy is None else noisy
-    robust = RobustStage() if robust is None else robust  # none by default (the paper's method)
-    if noisy.trials and robust.enabled:
-        raise ValueError("the noisy stage and the robust stage exclude each other: choose one")
-    config = run_config(seed, arena, max_leg_steps, n_targets, ga_config, noisy, robust)
+    config = run_config(seed, arena, max_leg_steps, n_targets, ga_config, noisy)
     ck_path = out / "checkpoint.json"
     if resume and ck_path.exists():
         state = load_checkpoint(ck_path, KIND, config)
         state.setdefault("stage", 1)  # a checkpoint written before the noisy stage existed
         state.setdefault("noisy", _fresh_noisy())
-        state.setdefault("robust", _fresh_robust())
         ga = GeneticAlgorithm.from_state_dict(state["ga"], np.random.default_rng())
     else:
         ga = GeneticAlgorithm(ga_config, np.random.default_rng(seed))
@@ -342,8 +323,6 @@ def run_offline(
             return state["noisy"]["accepted"] or (first is not None and (
                 ga.generation - first + 1 >= noisy.max_generations
                 or 0 < noisy.budget <= state["noisy"]["interactions"]))
-        if robust.enabled:
-            return robust_finished(robust, state, ga.generation)
         return reached_all()
 
     bar = tqdm(total=generations_cap, initial=min(ga.generation, generations_cap), disable=not progress,
@@ -352,10 +331,7 @@ def run_offline(
         with Evaluator(arena, max_leg_steps, n_targets, workers) as evaluator:
             while not finished() and ga.generation < generations_cap:
                 pop = ga.ask()
-                if state["stage"] == 2 and robust.enabled:
-                    best, entry_extra = robust_step(ga, pop, evaluator, robust, state, n_targets, states,
-                                                    transitions, _best_entry)
-                elif state["stage"] == 2:
+                if state["stage"] == 2:
                     best, entry_extra = _noisy_step(ga, pop, evaluator, noisy, records, state, seed, arena,
                                                     max_leg_steps, n_targets, states, transitions)
                 else:
@@ -376,11 +352,6 @@ def run_offline(
                         state["stage"] = 2  # the noise-free best reaches every target: go noisy
                         state["noisy"]["from_generation"] = ga.generation + 1
                         state["noisy"]["noise_free_best"] = dict(state["best"])
-                    if robust.enabled and best.targets_reached >= n_targets:
-                        state["stage"] = 2  # the noise-free best reaches every target: go perturbed
-                        state["robust"]["from_generation"] = ga.generation + 1
-                        state["robust"]["noise_free_best"] = dict(state["best"],
-                                                                  run_interactions=state["interactions"])
                 entry = {
                     "generation": ga.generation,
                     "best_fitness": best.fitness,
@@ -408,8 +379,6 @@ def run_offline(
     finally:
         bar.close()
 
-    if robust.enabled and state["robust"]["from_generation"] is not None:
-        state["best"] = robust_result(state)  # the elite of the last level passed
     summary = _summary(seed, state, config, ga_config, workers, reached_all())
     if transfer_trials:
         summary["transfer"] = transfer(summary["best_genome"], arena, max_leg_steps, n_targets, seed,
@@ -448,7 +417,6 @@ def _summary(seed, state, config, ga_config: GAConfig, workers, reached_all) -> 
         "config": config,
         "paper": PAPER,
         **({"noisy_stage": _noisy_summary(state, generations)} if "noisy_stage" in config else {}),
-        **({"robust_stage": robust_summary(state, generations)} if "robust_stage" in config else {}),
     }
 
 
@@ -490,7 +458,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
                         help="noisy stage: seeds of the champion/challenger race for the elite (0: none)")
     parser.add_argument("--noisy-budget", type=int, default=DEFAULT_NOISY.budget,
                         help="noisy stage: it ends once it has spent this many interactions (0: no limit)")
-    add_robust_arguments(parser)
     parser.add_argument("--transfer-trials", type=int, default=TRANSFER_TRIALS,
                         help="noisy-world runs of the final controller (noise seeds seed*1000+i)")
     parser.add_argument("--no-plots", action="store_true",

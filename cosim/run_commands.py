@@ -221,10 +221,9 @@ def cmd_offline(args, extras: dict, sub=None) -> int:
         return print_table(args.table)
     for name, least in (("generations_cap", 1), ("workers", 1), ("max_leg_steps", 1), ("seed", 0),
                         ("noisy_trials", 0), ("noisy_accept_runs", 1), ("noisy_max_failures", 1), ("noisy_max_generations", 1), ("noisy_race", 0), ("noisy_budget", 0),
-                        ("robust_max_generations", 1), ("robust_budget", 0), ("transfer_trials", 0)):
+                        ("transfer_trials", 0)):
         if getattr(args, name) < least:
             raise UserError(f"--{name.replace('_', '-')} must be at least {least}, got {getattr(args, name)!r}")
-    robust_stage(args)  # its checks, before anything is written
     from sim_world.arena import load_arena
 
     load_arena(args.arena)
@@ -235,7 +234,7 @@ def cmd_offline(args, extras: dict, sub=None) -> int:
 
             load_checkpoint(out / "checkpoint.json", offline.KIND,
                             offline.run_config(args.seed, args.arena, args.max_leg_steps, offline.N_TARGETS,
-                                               offline.default_ga_config(), noisy_stage(args), robust_stage(args)))
+                                               offline.default_ga_config(), noisy_stage(args)))
         options = {k: getattr(args, k) for k in _option_keys(sub, exclude=("table",))}
         write_config(out, {k: (str(v) if isinstance(v, Path) else v) for k, v in options.items()}, {}, "offline")
         run_offline_from_args(args, out)
@@ -268,19 +267,6 @@ def noisy_stage(args):
                       max_failures=args.noisy_max_failures, max_generations=args.noisy_max_generations, race=args.noisy_race, budget=args.noisy_budget)
 
 
-def robust_stage(args):
-    """The off-line run's robust stage from parsed ``args`` (``--robust-*``); UserError if bad."""
-    from cosim.offline_robust import stage_from_args
-
-    try:
-        stage = stage_from_args(args)
-    except ValueError as exc:
-        raise UserError(f"--robust-*: {exc}") from None
-    if stage.enabled and args.noisy_trials:
-        raise UserError("--robust-bias-deg and --noisy-trials exclude each other: choose one stage")
-    return stage
-
-
 def run_offline_from_args(args, out: Path) -> dict:
     """Run the off-line experiment of parsed ``args`` into the run folder ``out``; print the figures."""
     from cosim import offline
@@ -288,8 +274,7 @@ def run_offline_from_args(args, out: Path) -> dict:
     summary = offline.run_offline(
         args.seed, generations_cap=args.generations_cap, workers=args.workers, resume=args.resume,
         out=out, arena=args.arena, max_leg_steps=args.max_leg_steps, progress=not args.quiet,
-        plots=not args.no_plots, noisy=noisy_stage(args), robust=robust_stage(args),
-        transfer_trials=args.transfer_trials,
+        plots=not args.no_plots, noisy=noisy_stage(args), transfer_trials=args.transfer_trials,
     )
     offline._WORLDS.clear()  # free the pymunk spaces now, not during interpreter shutdown
     keys = ("seed", "reached_all_targets", "targets_reached", "generations", "genetic_operations",
@@ -305,9 +290,5 @@ def run_offline_from_args(args, out: Path) -> dict:
         n = summary["noisy_stage"]
         print(f"{'noisy stage':22s} from generation {n['from_generation']}, {n['interactions']} interactions, "
               f"accepted: {n['accepted']}")
-    if summary.get("robust_stage"):
-        r = summary["robust_stage"]
-        print(f"{'robust stage':22s} from generation {r['from_generation']}, {r['interactions']} interactions, "
-              f"levels passed: {[lv['bias_deg'] for lv in r['levels_passed']]}, accepted: {r['accepted']}")
     print(f"wrote {Path(out) / 'summary.json'}")
     return summary

@@ -124,33 +124,6 @@ DEFAULT_NOISE = Noise(translation_sd=0.1, rotation_sd_deg=3.0, ir_false_negative
 
 
 @dataclass(frozen=True)
-class Bias:
-    """A systematic (deterministic) motor error: the same on every motion, so the world stays
-    noise-free in the sense that matters to the off-line GA (a run is a pure function of the
-    controller; the pose cache stays exact). The off-line robust stage drives such worlds
-    (`cosim.offline_robust`, docs/offline.md round 4): a heading bias makes drift accumulate
-    along a wall, as the real robot's heading noise does, and a longer step exposes near misses.
-
-    rotation_deg: degrees added to the heading change of every motion (counter-clockwise
-        positive; one wheel slightly larger than the other).
-    translation_scale: every translation is multiplied by it (1.1 = steps 10 % too long).
-    """
-
-    rotation_deg: float = 0.0
-    translation_scale: float = 1.0
-
-    def __post_init__(self):
-        if not math.isfinite(self.rotation_deg):
-            raise ValueError(f"Bias.rotation_deg must be finite, got {self.rotation_deg!r}")
-        if not (math.isfinite(self.translation_scale) and self.translation_scale > 0):
-            raise ValueError(f"Bias.translation_scale must be > 0, got {self.translation_scale!r}")
-
-    @property
-    def is_zero(self) -> bool:
-        return self.rotation_deg == 0.0 and self.translation_scale == 1.0
-
-
-@dataclass(frozen=True)
 class Fault:
     """From interaction ``at_step`` on (0 = from the start), IR bit ``bit`` (0..5) reads ``value``.
 
@@ -198,20 +171,14 @@ def build_space(arena: Arena) -> pymunk.Space:
 
 
 class World:
-    """The simulated robot in an arena. Noise-free unless ``noise`` is given; seeded by ``seed``.
-    ``bias`` (a `Bias`) adds a systematic motor error to every motion, before the noise."""
+    """The simulated robot in an arena. Noise-free unless ``noise`` is given; seeded by ``seed``."""
 
     def __init__(self, arena: Arena | str | None = None, noise: Noise | None = None, faults=(), seed=None,
-                 cache: bool = True, bias: Bias | None = None):
+                 cache: bool = True):
         if arena is None or isinstance(arena, str):
             arena = load_arena(arena or "default")
         self.arena = arena
         self.noise = None if noise is None or noise.is_zero else noise
-        if bias is not None and not isinstance(bias, Bias):
-            raise TypeError(f"bias must be a Bias, got {bias!r}")
-        # A systematic motor error (Bias): (translation factor, heading change in radians).
-        self.bias = None if bias is None or bias.is_zero else bias
-        self._bias = None if self.bias is None else (self.bias.translation_scale, math.radians(self.bias.rotation_deg))
         self.faults = tuple(faults)
         for f in self.faults:
             if not isinstance(f, Fault):
@@ -449,9 +416,6 @@ class World:
         if not 0 <= motion < N_MOTIONS:
             raise ValueError(f"motion must be in 0..{N_MOTIONS - 1}, got {motion!r}")
         t, r = _TRANSLATION[motion], _ROTATION[motion]
-        if self._bias is not None:
-            t *= self._bias[0]
-            r += self._bias[1]
         noise = self.noise
         if noise is not None:
             if noise.translation_sd:
