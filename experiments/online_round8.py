@@ -35,7 +35,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from cosim.failures import Cycles  # noqa: E402
+from cosim.failures import Cycles, blame  # noqa: E402
 from cosim.online import OnlineConfig, make_run  # noqa: E402
 from experiments.online_round6 import cell, lost, seeds_of  # noqa: E402
 from experiments.online_round7 import DEFAULT_PARAMS as R7_PARAMS  # noqa: E402
@@ -44,7 +44,8 @@ from ga.evaluator import fitness as model_fitness  # noqa: E402
 from ga.motions import OBSTACLE_MASK  # noqa: E402
 
 DEFAULT_OUT = Path("build/experiments/round8.jsonl")
-R8_PARAMS = {"first2": 0, "at_target": 0, "every": 0, "keep": 0}
+R8_PARAMS = {"first2": 0, "at_target": 0, "every": 0, "keep": 0, "blame": "leg"}
+BLAMES = ("leg", "cycle_now", "cycle_freq")
 DEFAULT_PARAMS = {**R7_PARAMS, **R8_PARAMS}
 
 
@@ -92,14 +93,28 @@ class Round8(Round7):
                 return "crash", steps, s, a, ""
             for detector, hit in zip(self.detectors, fired):
                 if hit:
-                    from cosim.failures import blame
-
-                    return (detector.reason, steps, *blame(self.track.pairs),
+                    return (detector.reason, steps, *self.blamed(detector),
                             detector.name if detector.reason == "loop" else "")
             if cfg.max_interactions and self.interactions >= cfg.max_interactions:
                 return "budget", steps, s, a, ""
             if every and steps % every == 0:
                 return "periodic", steps, s, a, ""
+
+    def blamed(self, detector) -> tuple[int, int]:
+        """The (state, motion) the stop is blamed on: ``blame`` = leg (the defaults: the most
+        frequent obstacle pair of the leg's recent pairs), or, for a cycle stop, a pair of the
+        cycle that stopped the leg: cycle_now (the robot's current state's pair when it has an
+        obstacle bit, else the cycle's next obstacle pair), cycle_freq (the cycle's obstacle pair
+        most frequent among the leg's recent pairs)."""
+        rule = self.params["blame"]
+        cycle = detected_cycle(self.track, self.config.loop_radius_mm) if detector.name == "cycles" else []
+        if rule == "leg" or not cycle:
+            return blame(self.track.pairs)
+        obstacle = [p for p in cycle if p[0] & OBSTACLE_MASK]
+        if rule == "cycle_now":
+            return obstacle[0]
+        counts = Counter(self.track.pairs)
+        return max(obstacle, key=lambda p: counts[p])  # ties: the first from the current state
 
     def learn(self, reason, steps, state, motion, detector=""):
         if reason == "loop":
@@ -117,6 +132,25 @@ class Round8(Round7):
                     self.controller.load(running)
                     self.phases[-1]["kept"] = True
                     self.kept += 1
+
+
+def detected_cycle(track, radius_mm: float) -> list:
+    """The (state, motion) pairs of the cycle ``cosim.failures.Cycles`` (one round) finds, in
+    order from the current state; [] if none."""
+    w, now = track.pairs, track.state
+    for p in range(2, 9):
+        if p > len(w) or p > track.since_closer:
+            break
+        if w[-p][0] != now:
+            continue
+        cycle = [w[i] for i in range(-p, 0)]
+        states = [s for s, _ in cycle]
+        if len(set(states)) < p or not any(s & OBSTACLE_MASK for s in states):
+            continue
+        if radius_mm and track.moved(max(-p - 1, -len(track.places))) > radius_mm:
+            continue
+        return cycle
+    return []
 
 
 def run_one(variant: str, seed: int, budget: int, settings: dict, params: dict) -> dict:
@@ -138,6 +172,8 @@ def run_one(variant: str, seed: int, budget: int, settings: dict, params: dict) 
             "lost": lost(failures, run.target_log), "kept": run.kept,
             "first_leg": run.target_log[0]["interactions"] if run.target_log else run.interactions,
             "per_16": per_block(run.target_log, run.interactions),
+            "legs": legs(run.target_log, run.interactions),
+            "leg_failures": leg_failures(failures, len(run.target_log)),
             "steps": dict(classes), "failure_classes": dict(run.failure_classes),
             "download_trace": dict(run.download_trace),
             "wall_s": round(time.perf_counter() - t0, 1), "cpu_s": round(time.process_time() - c0, 1)}
@@ -149,6 +185,20 @@ def per_block(target_log, interactions: int, block: int = 16) -> list[int]:
     if not target_log or target_log[-1]["target"] % block:
         marks.append(interactions)
     return [b - a for a, b in zip(marks, marks[1:])]
+
+
+def legs(target_log, interactions: int) -> list[int]:
+    """Interactions spent on each leg (the last one unfinished if the budget ran out)."""
+    marks = [0] + [t["interactions"] for t in target_log]
+    if interactions > marks[-1]:
+        marks.append(interactions)
+    return [b - a for a, b in zip(marks, marks[1:])]
+
+
+def leg_failures(failures, n_legs: int) -> list[int]:
+    """Learning phases started by a failure on each leg."""
+    counts = Counter(p["targets"] for p in failures)
+    return [counts.get(i, 0) for i in range(max(n_legs, max(counts, default=0)) + 1)]
 
 
 def key_of(r: dict) -> str:
@@ -199,6 +249,8 @@ def main(argv=None) -> int:
     unknown = set(params) - set(DEFAULT_PARAMS)
     if unknown:
         p.error(f"unknown --param {sorted(unknown)[0]!r}")
+    if params.get("blame", "leg") not in BLAMES:
+        p.error(f"--param blame must be one of {', '.join(BLAMES)}")
     a.out.parent.mkdir(parents=True, exist_ok=True)
     done = set()
     if a.out.exists():
