@@ -40,7 +40,7 @@ import numpy as np
 from cosim.boards import learning_top_drives, make_boards, make_learning_boards
 from cosim.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
 from cosim.download import choose_download
-from cosim.failures import Track, blame
+from cosim.failures import Track, blame, blame_cycle
 from cosim.online_config import OnlineConfig
 from ga.diversity import diversity
 from ga.evaluator import fitness as model_fitness
@@ -176,10 +176,17 @@ class OnlineRun:
                 return "crash", steps, s, a, ""
             for detector, hit in zip(self.detectors, fired):
                 if hit:
-                    return (detector.reason, steps, *blame(self.track.pairs),
+                    return (detector.reason, steps, *self.blamed(detector),
                             detector.name if detector.reason == "loop" else "")
             if cfg.max_interactions and self.interactions >= cfg.max_interactions:
                 return "budget", steps, s, a, ""
+
+    def blamed(self, detector) -> tuple[int, int]:
+        """The (state, motion) the stop by ``detector`` is put on (the escape avoids it)."""
+        cycle = getattr(detector, "cycle", None)
+        if cycle and self.config.loop_blame == "cycle":
+            return blame_cycle(cycle)
+        return blame(self.track.pairs)
 
     # -- the learning phase --------------------------------------------------------------------
 
