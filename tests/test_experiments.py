@@ -153,3 +153,28 @@ def test_online_round7_trace_ends_on_a_small_model():
     end = round7.trace_ends(tables, m, np.array([1, 3]), 0)
     names = [[round7.ENDS[e] for e in row] for row in end]
     assert names == [["cycle", "crash"], ["unknown", "crash"]]
+
+
+def test_online_round8_runs_each_parameter_and_its_cycle_blame_is_the_default(tmp_path, capsys):
+    """Round 8's harness: each parameter runs a smoke lifetime; ``blame`` "leg" is the lifetime of
+    ``loop_blame`` "leg" (rounds 1-7) and "cycle_now" that of the default ``loop_blame`` "cycle"."""
+    round8 = _script("online_round8")
+    out = tmp_path / "r8.jsonl"
+    params = [["blame=\"leg\""], ["blame=\"cycle_now\""], ["blame=\"cycle_freq\""], ["first2=1"],
+              ["at_target=1", "keep=1"], ["every=7", "keep=1"]]
+    for ps in params:
+        argv = ["default", "1", "--budget", "150", "--out", str(out)]
+        for p in ps:
+            argv += ["--param", p]
+        assert round8.main(argv) == 0
+    runs = [json.loads(line) for line in out.read_text().splitlines()]
+    assert len(runs) == len(params) and all(r["interactions"] in (150, 151) for r in runs)
+    assert runs[4]["reasons"].get("target", 0) == runs[4]["targets"] and runs[5]["reasons"]["periodic"] >= 1
+    from cosim.online import OnlineConfig, make_run
+
+    for r, rule in ((runs[0], "leg"), (runs[1], "cycle")):
+        plain = make_run(OnlineConfig(seed=1, max_interactions=150, loop_blame=rule)).run()
+        assert (r["interactions"], r["targets"], r["phases"]) == (plain.interactions, plain.targets, len(plain.phases))
+    capsys.readouterr()
+    assert round8.main(["--table", str(out)]) == 0
+    assert "| default first2=1 | 1: **" in capsys.readouterr().out
