@@ -70,7 +70,7 @@ def test_online_round6_runs_each_variant_and_tabulates(tmp_path, capsys):
     assert all(r["interactions"] in (120, 121) and 0 < r["lost"] <= r["interactions"] for r in runs)
     from cosim.online import OnlineConfig, make_run
 
-    plain = make_run(OnlineConfig(seed=1, max_interactions=120)).run()
+    plain = make_run(OnlineConfig(seed=1, max_interactions=120, loop_blame="leg")).run()  # rounds 1-7's rule
     assert runs[0]["interactions"] == plain.interactions and runs[0]["phases"] == len(plain.phases)
     assert round6.main([round6.VARIANTS[0], "1", "--budget", "120", "--out", str(out)]) == 0  # reused
     assert len(out.read_text().splitlines()) == len(round6.VARIANTS)
@@ -131,7 +131,7 @@ def test_online_round7_runs_each_variant_classes_every_step_and_tabulates(tmp_pa
         assert sum(r["download_trace"].values()) == r["phases"]
     from cosim.online import OnlineConfig, make_run
 
-    plain = make_run(OnlineConfig(seed=1, max_interactions=120)).run()
+    plain = make_run(OnlineConfig(seed=1, max_interactions=120, loop_blame="leg")).run()  # rounds 1-7's rule
     assert runs[0]["interactions"] == plain.interactions and runs[0]["phases"] == len(plain.phases)
     capsys.readouterr()
     assert round7.main(["--table", str(out)]) == 0
