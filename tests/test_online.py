@@ -222,13 +222,16 @@ def test_phase_records_name_the_detector_and_the_escape():
             assert p["changed"] and p["new_motion"] != p["motion"]
 
 
-def test_cycle_stops_are_blamed_in_the_cycle_that_stopped_the_leg():
+@pytest.mark.parametrize("ga", ["host", "hardware"])
+def test_cycle_stops_are_blamed_in_the_cycle_that_stopped_the_leg(ga):
     """``loop_blame`` "cycle" (the default, round 8): a cycle stop is put on the robot's current
     state when it has an obstacle bit (the cycle starts there), so the escape changes the next
-    motion; "leg" (rounds 1-7), the leg's most frequent obstacle pair, is another pair in some
-    stops, and the two give other lifetimes."""
+    motion, with the host GA and on the learning board alike (its escape gets the phase's pair);
+    "leg" (rounds 1-7), the leg's most frequent obstacle pair, is another pair in some stops, and
+    the two give other lifetimes."""
     def cycle_stops(rule):
-        run = make_run(OnlineConfig(seed=5, max_interactions=1500, loop_blame=rule)).run()
+        config = OnlineConfig(seed=5, max_interactions=1000, population=100, loop_blame=rule, ga=ga)
+        run = make_run(config).run()
         stops = [p for p in run.phases if p.get("detector") == "cycles"]
         assert stops
         here = [run.state_log[p["interactions"] - 1] for p in stops]  # the state at the stop
