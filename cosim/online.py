@@ -16,7 +16,8 @@ A lifetime alternates two phases, in sequence as in the paper:
   (population 500, tournament 20, elitism; the GA is kept across phases), each population
   evaluated on the evaluator board and scored with the normative fitness
   (``ga.evaluator.fitness``); the controller chosen by ``cosim.download`` (the best, or after a
-  time-out or loop the best that escapes the blamed motion) is loaded with ``controller.load``.
+  time-out or loop the best that escapes the blamed motion: for a cycle stop a pair of the cycle,
+  ``loop_blame``) is loaded with ``controller.load``.
 - At the very start the model is empty and a random individual of the initial population drives.
 - Stop at ``n_targets`` targets (64; more with ``--continue-past-64``) or ``max_interactions``.
 
