@@ -178,3 +178,10 @@ def test_online_round8_runs_each_parameter_and_its_cycle_blame_is_the_default(tm
     capsys.readouterr()
     assert round8.main(["--table", str(out)]) == 0
     assert "| default first2=1 | 1: **" in capsys.readouterr().out
+
+
+def test_online_blame_check_counts_where_cycle_stops_are_blamed(capsys):
+    check = _script("online_blame_check")
+    assert check.main(["1", "200", "leg"]) == 0
+    interactions, targets, counts = capsys.readouterr().out.split(" ", 2)
+    assert int(interactions) in (200, 201) and "'cycles'" in counts
