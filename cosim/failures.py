@@ -20,7 +20,8 @@ an execution phase and of every leg, and ``observe(track) -> bool`` after every 
 the phase should end there. They read what the loop has seen from one :class:`Track` (the recent
 (state, motion) pairs, the odometry, the closest approach), which the loop updates once a step;
 the loop composes them as a list, as Gymnasium stacks its ``TimeLimit`` and other wrappers.
-:func:`blame` names the (state, motion) a time-out or loop is put on.
+:func:`blame` names the (state, motion) a time-out or loop is put on; :func:`blame_cycle` the one a
+cycle stop is put on (a pair of the cycle that stopped the leg).
 """
 
 from __future__ import annotations
@@ -203,9 +204,10 @@ class Cycles:
 
     def __init__(self, k: int, radius_mm: float = 0.0):
         self.k, self.radius_mm = k, radius_mm
+        self.cycle: list[tuple[int, int]] = []  # the pairs of the last round when it fired
 
     def reset(self) -> None:
-        pass
+        self.cycle = []
 
     def observe(self, track: Track) -> bool:
         w, now = track.pairs, track.state
@@ -225,6 +227,7 @@ class Cycles:
             # kept if the track holds no earlier pair)
             if self.radius_mm and track.moved(max(-n - 1, -len(track.places))) > self.radius_mm:
                 continue
+            self.cycle = cycle
             return True
         return False
 
@@ -232,9 +235,20 @@ class Cycles:
 def blame(pairs) -> tuple[int, int]:
     """The (state, motion) a time-out or loop is blamed on: the most frequent of the recent
     ``pairs`` in a state the controller decides (some obstacle bit set; ties: the first seen),
-    else the last pair."""
+    else the last pair (a cycle stop with ``loop_blame`` "leg"; the leg time-out, the window, the
+    re-entries and the repeats)."""
     pairs = list(pairs)
     decided = [p for p in pairs if p[0] & OBSTACLE_MASK]
     if not decided:
         return pairs[-1]
     return Counter(decided).most_common(1)[0][0]
+
+
+def blame_cycle(cycle) -> tuple[int, int]:
+    """The (state, motion) a cycle stop is blamed on with ``loop_blame`` "cycle" (the default,
+    docs/online.md round 8): the first pair of the cycle, in order from the state the robot is in
+    now, in a state the controller decides. The cycle starts at the current state, so when that
+    state has an obstacle bit the escape changes the very next motion, inside the loop that
+    stopped the leg; the leg's most frequent pair (:func:`blame`) was outside that loop in most
+    cycle stops."""
+    return next(p for p in cycle if p[0] & OBSTACLE_MASK)

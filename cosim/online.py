@@ -16,7 +16,8 @@ A lifetime alternates two phases, in sequence as in the paper:
   (population 500, tournament 20, elitism; the GA is kept across phases), each population
   evaluated on the evaluator board and scored with the normative fitness
   (``ga.evaluator.fitness``); the controller chosen by ``cosim.download`` (the best, or after a
-  time-out or loop the best that escapes the blamed motion) is loaded with ``controller.load``.
+  time-out or loop the best that escapes the blamed motion: for a cycle stop a pair of the cycle,
+  ``loop_blame``) is loaded with ``controller.load``.
 - At the very start the model is empty and a random individual of the initial population drives.
 - Stop at ``n_targets`` targets (64; more with ``--continue-past-64``) or ``max_interactions``.
 
@@ -40,7 +41,7 @@ import numpy as np
 from cosim.boards import learning_top_drives, make_boards, make_learning_boards
 from cosim.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
 from cosim.download import choose_download
-from cosim.failures import Track, blame
+from cosim.failures import Track, blame, blame_cycle
 from cosim.online_config import OnlineConfig
 from ga.diversity import diversity
 from ga.evaluator import fitness as model_fitness
@@ -176,10 +177,17 @@ class OnlineRun:
                 return "crash", steps, s, a, ""
             for detector, hit in zip(self.detectors, fired):
                 if hit:
-                    return (detector.reason, steps, *blame(self.track.pairs),
+                    return (detector.reason, steps, *self.blamed(detector),
                             detector.name if detector.reason == "loop" else "")
             if cfg.max_interactions and self.interactions >= cfg.max_interactions:
                 return "budget", steps, s, a, ""
+
+    def blamed(self, detector) -> tuple[int, int]:
+        """The (state, motion) the stop by ``detector`` is put on (the escape avoids it)."""
+        cycle = getattr(detector, "cycle", None)
+        if cycle and self.config.loop_blame == "cycle":
+            return blame_cycle(cycle)
+        return blame(self.track.pairs)
 
     # -- the learning phase --------------------------------------------------------------------
 

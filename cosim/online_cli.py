@@ -20,7 +20,7 @@ from cosim.boards import BACKENDS, launcher
 from cosim.errors import UserError
 from cosim.learning_phase import check_learning_backend
 from cosim.online import make_run
-from cosim.online_config import OnlineConfig
+from cosim.online_config import LOOP_BLAMES, OnlineConfig
 from ga.motions import DISTANCE_RULES
 
 DEFAULT_OUT = Path("results/model_based")
@@ -73,6 +73,10 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
                    help="end the lifetime after this many interactions even short of the targets (0: never)")
     p.add_argument("--escape", action=argparse.BooleanOptionalAction, default=d.escape,
                    help="after a time-out or loop, download the best that avoids the blamed motion")
+    p.add_argument("--loop-blame", choices=LOOP_BLAMES, default=d.loop_blame,
+                   help="the (state, motion) a cycle stop is blamed on: cycle = the first pair of "
+                        "the cycle that stopped the leg (default), leg = the leg's most frequent "
+                        "obstacle pair (rounds 1-7)")
     p.add_argument("--ga", choices=("host", "hardware"), default=d.ga,
                    help="the learning phases' GA: the host's NumPy GA (default) or the learning "
                         "board's hardware GA (SPEC section 12, docs/learner.md)")
@@ -93,7 +97,7 @@ def config_from_args(args) -> OnlineConfig:
         max_leg_steps=args.max_leg_steps, loop_window=args.loop_window,
         loop_reentries=args.loop_reentries, loop_repeats=args.loop_repeats,
         loop_radius_mm=args.loop_radius_mm, loop_cycles=args.loop_cycles, distance_rule=args.distance,
-        escape=args.escape, max_interactions=args.max_interactions,
+        escape=args.escape, loop_blame=args.loop_blame, max_interactions=args.max_interactions,
         blind_bit=args.blind_bit, blind_after_target=args.blind_after_target,
         ga=args.ga, lanes=args.lanes,
     )

@@ -17,6 +17,8 @@ from ga.evolution import GAConfig
 from ga.motions import DISTANCE_RULES
 
 # The command-line option of each OnlineConfig field (cosim.online_cli), named in error messages.
+LOOP_BLAMES = ("cycle", "leg")  # OnlineConfig.loop_blame
+
 OPTIONS = {"n_targets": "--targets", "distance_rule": "--distance"}
 
 
@@ -56,6 +58,9 @@ class OnlineConfig:
     # learning phase: after a time-out or loop, download the fittest individual whose motion in the
     # blamed state differs from the failed one (cosim.download; docs/online.md, round 1)
     escape: bool = True
+    # the (state, motion) a cycle stop is blamed on (cosim.failures): "cycle", a pair of the cycle
+    # that stopped the leg (round 8), or "leg", the leg's most frequent obstacle pair (rounds 1-7)
+    loop_blame: str = "cycle"
     max_interactions: int = 100_000  # end the lifetime there even short of n_targets (0: no limit)
     # The GA of the learning phases: "host" (ga.evolution on the host, the evaluator board
     # evaluates) or "hardware" (the learning board: ga.hardware_ga / hdl.learner with `lanes`
@@ -92,6 +97,7 @@ class OnlineConfig:
             check(isinstance(getattr(self, field), bool), field, "True or False")
         check(isinstance(self.arena, str) and bool(self.arena), "arena", "an arena name or .json path")
         check(self.ga in ("host", "hardware"), "ga", "host or hardware")
+        check(self.loop_blame in LOOP_BLAMES, "loop_blame", f"one of {', '.join(LOOP_BLAMES)}")
         check(isinstance(self.lanes, int) and not isinstance(self.lanes, bool) and 1 <= self.lanes <= 48,
               "lanes", "an integer in 1..48")
         if (self.blind_bit is None) != (self.blind_after_target is None):

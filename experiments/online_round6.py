@@ -166,7 +166,8 @@ def lost(phases, target_log) -> int:
 
 
 def run_one(variant: str, seed: int, budget: int, settings: dict) -> dict:
-    config = OnlineConfig(seed=seed, max_interactions=budget, **settings)
+    # blamed like rounds 1-7 unless --set loop_blame=... (round 8 changed the default)
+    config = OnlineConfig(seed=seed, max_interactions=budget, **{"loop_blame": "leg", **settings})
     run = make_run(config)
     v = Variant(config, run.controller, run.evaluator)
     v.variant = variant

@@ -17,8 +17,8 @@ Rows whose options were measured and dropped (docs/online.md names them) hold th
 code has them: this script runs them there, e.g.
 ``git worktree add /tmp/ehw-af766a7 af766a7 && cd /tmp/ehw-af766a7 && make venv &&
 .venv/bin/python /path/to/experiments/online_table.py round3 --dropped``; on the current code
-they are listed as skipped. Every row spells out distance_rule and loop_cycles, so a table
-means the same at every commit. The worlds of rounds 1-2 were changed since (docs/online.md):
+they are listed as skipped. Every row spells out distance_rule and loop_cycles, and runs with
+round 8's ``loop_blame`` "leg" (the only rule before it), so a table means the same at every commit. The worlds of rounds 1-2 were changed since (docs/online.md):
 their rows give other numbers on today's world.
 """
 
@@ -124,12 +124,20 @@ def known_fields() -> set[str]:
     return {f.name for f in dataclasses.fields(OnlineConfig)}
 
 
+def rounds_1_7(options: dict) -> dict:
+    """Every row predates round 8: its cycle stops are blamed like rounds 1-7 (``loop_blame``
+    "leg"; a commit without that field has only that rule)."""
+    if "loop_blame" in known_fields() and "loop_blame" not in options:
+        return {**options, "loop_blame": "leg"}
+    return options
+
+
 def lifetime(task: tuple[str, dict, int, int]) -> dict:
     """One run of a row: the figures and how its legs were stopped."""
     from cosim.online import OnlineConfig, make_run
 
     label, options, seed, budget = task
-    run = make_run(OnlineConfig(seed=seed, max_interactions=budget, **options)).run()
+    run = make_run(OnlineConfig(seed=seed, max_interactions=budget, **rounds_1_7(options))).run()
     s = run.summary()
     detectors = Counter(p.get("detector", p["reason"]) for p in s["phases"])
     return {"row": label, "seed": seed, "budget": budget, "options": options,

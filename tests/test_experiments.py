@@ -70,7 +70,7 @@ def test_online_round6_runs_each_variant_and_tabulates(tmp_path, capsys):
     assert all(r["interactions"] in (120, 121) and 0 < r["lost"] <= r["interactions"] for r in runs)
     from cosim.online import OnlineConfig, make_run
 
-    plain = make_run(OnlineConfig(seed=1, max_interactions=120)).run()
+    plain = make_run(OnlineConfig(seed=1, max_interactions=120, loop_blame="leg")).run()  # rounds 1-7's rule
     assert runs[0]["interactions"] == plain.interactions and runs[0]["phases"] == len(plain.phases)
     assert round6.main([round6.VARIANTS[0], "1", "--budget", "120", "--out", str(out)]) == 0  # reused
     assert len(out.read_text().splitlines()) == len(round6.VARIANTS)
@@ -131,7 +131,7 @@ def test_online_round7_runs_each_variant_classes_every_step_and_tabulates(tmp_pa
         assert sum(r["download_trace"].values()) == r["phases"]
     from cosim.online import OnlineConfig, make_run
 
-    plain = make_run(OnlineConfig(seed=1, max_interactions=120)).run()
+    plain = make_run(OnlineConfig(seed=1, max_interactions=120, loop_blame="leg")).run()  # rounds 1-7's rule
     assert runs[0]["interactions"] == plain.interactions and runs[0]["phases"] == len(plain.phases)
     capsys.readouterr()
     assert round7.main(["--table", str(out)]) == 0
@@ -153,3 +153,35 @@ def test_online_round7_trace_ends_on_a_small_model():
     end = round7.trace_ends(tables, m, np.array([1, 3]), 0)
     names = [[round7.ENDS[e] for e in row] for row in end]
     assert names == [["cycle", "crash"], ["unknown", "crash"]]
+
+
+def test_online_round8_runs_each_parameter_and_its_cycle_blame_is_the_default(tmp_path, capsys):
+    """Round 8's harness: each parameter runs a smoke lifetime; ``blame`` "leg" is the lifetime of
+    ``loop_blame`` "leg" (rounds 1-7) and "cycle_now" that of the default ``loop_blame`` "cycle"."""
+    round8 = _script("online_round8")
+    out = tmp_path / "r8.jsonl"
+    params = [["blame=\"leg\""], ["blame=\"cycle_now\""], ["blame=\"cycle_freq\""], ["first2=1"],
+              ["at_target=1", "keep=1"], ["every=7", "keep=1"]]
+    for ps in params:
+        argv = ["default", "1", "--budget", "150", "--out", str(out)]
+        for p in ps:
+            argv += ["--param", p]
+        assert round8.main(argv) == 0
+    runs = [json.loads(line) for line in out.read_text().splitlines()]
+    assert len(runs) == len(params) and all(r["interactions"] in (150, 151) for r in runs)
+    assert runs[4]["reasons"].get("target", 0) == runs[4]["targets"] and runs[5]["reasons"]["periodic"] >= 1
+    from cosim.online import OnlineConfig, make_run
+
+    for r, rule in ((runs[0], "leg"), (runs[1], "cycle")):
+        plain = make_run(OnlineConfig(seed=1, max_interactions=150, loop_blame=rule)).run()
+        assert (r["interactions"], r["targets"], r["phases"]) == (plain.interactions, plain.targets, len(plain.phases))
+    capsys.readouterr()
+    assert round8.main(["--table", str(out)]) == 0
+    assert "| default first2=1 | 1: **" in capsys.readouterr().out
+
+
+def test_online_blame_check_counts_where_cycle_stops_are_blamed(capsys):
+    check = _script("online_blame_check")
+    assert check.main(["1", "200", "leg"]) == 0
+    interactions, targets, counts = capsys.readouterr().out.split(" ", 2)
+    assert int(interactions) in (200, 201) and "'cycles'" in counts

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from cosim.download import choose_download
-from cosim.failures import Cycles, LegTimeout, NoProgress, Reentries, Repeats, Track, blame
+from cosim.failures import Cycles, LegTimeout, NoProgress, Reentries, Repeats, Track, blame, blame_cycle
 from ga.operators import random_population
 from ga.truth_table import truth_tables
 
@@ -126,6 +126,26 @@ def test_cycles_need_distinct_states_with_an_obstacle_bit():
     assert drive(Cycles(1), [(2, 64), (3, 128), (2, 64), (3, 128)], start=128) == []  # no obstacle bit
     assert drive(Cycles(1), [(2, 64), (3, 129), (2, 64), (3, 129)], start=129) == [3, 4]
     assert drive(Cycles(1), [(2, 1), (3, 1), (2, 1), (3, 1)], start=1) == []  # 1 -> 1 is no 2-cycle
+
+
+def test_a_cycle_stop_is_blamed_inside_its_cycle():
+    """A leg that went three times through (3, 2), then round the cycle 64 -> 1 -> 64: the leg's
+    most frequent pair (``blame``, rounds 1-7) is outside the loop; ``blame_cycle`` puts the stop
+    on the cycle's first pair, from the state the robot is in, in an obstacle state (round 8)."""
+    track, cycles = Track(64), Cycles(1)
+    track.state = 3
+    fired = []
+    for motion, nxt in [(2, 3), (2, 3), (2, 3), (2, 64), (3, 1), (4, 64), (3, 1)]:
+        track.step(track.state, motion, nxt, False, False, FAR)
+        fired.append(cycles.observe(track))
+        if fired[-1]:
+            break
+    assert fired == [False] * 5 + [True]  # back in 64 after (64, 3), (1, 4)
+    assert cycles.cycle == [(64, 3), (1, 4)]
+    assert blame(track.pairs) == (3, 2) and blame_cycle(cycles.cycle) == (1, 4)
+    assert blame_cycle([(1, 4), (64, 3)]) == (1, 4)  # the robot in an obstacle state: its own pair
+    cycles.reset()
+    assert cycles.cycle == []
 
 
 def test_blame_is_the_most_frequent_obstacle_pair_else_the_last():

@@ -17,6 +17,7 @@ from cosim.online_config import option
 from cosim.online_cli import build_parser, config_from_args, main
 from cosim.online_report import adaptation_figures, summary_table
 from ga.genome import validate_rows
+from ga.motions import OBSTACLE_MASK
 from ga.operators import random_population
 from ga.truth_table import truth_tables
 from ga.world_model import WorldModel
@@ -221,6 +222,28 @@ def test_phase_records_name_the_detector_and_the_escape():
             assert p["changed"] and p["new_motion"] != p["motion"]
 
 
+@pytest.mark.parametrize("ga", ["host", "hardware"])
+def test_cycle_stops_are_blamed_in_the_cycle_that_stopped_the_leg(ga):
+    """``loop_blame`` "cycle" (the default, round 8): a cycle stop is put on the robot's current
+    state when it has an obstacle bit (the cycle starts there), so the escape changes the next
+    motion, with the host GA and on the learning board alike (its escape gets the phase's pair);
+    "leg" (rounds 1-7), the leg's most frequent obstacle pair, is another pair in some stops, and
+    the two give other lifetimes."""
+    def cycle_stops(rule):
+        config = OnlineConfig(seed=5, max_interactions=1000, population=100, loop_blame=rule, ga=ga)
+        run = make_run(config).run()
+        stops = [p for p in run.phases if p.get("detector") == "cycles"]
+        assert stops
+        here = [run.state_log[p["interactions"] - 1] for p in stops]  # the state at the stop
+        return run, [(p["state"], now) for p, now in zip(stops, here) if now & OBSTACLE_MASK]
+
+    run, pairs = cycle_stops("cycle")
+    assert pairs and all(blamed == now for blamed, now in pairs)
+    legacy, pairs = cycle_stops("leg")
+    assert any(blamed != now for blamed, now in pairs)
+    assert legacy.motions != run.motions
+
+
 def test_defaults_and_command_line():
     """SPEC section 7's defaults; ``--distance covered --loop-cycles 0`` is the first reading."""
     default = config_from_args(build_parser().parse_args([]))
@@ -228,7 +251,8 @@ def test_defaults_and_command_line():
     options = {a.dest for a in build_parser()._actions}
     for field in OnlineConfig().to_dict():  # every field has its option (named in the errors)
         assert option(field).lstrip("-").replace("-", "_") in options | {"targets"}, field
-    assert (default.distance_rule, default.loop_cycles) == ("forward", 1)
+    assert (default.distance_rule, default.loop_cycles, default.loop_blame) == ("forward", 1, "cycle")
+    assert config_from_args(build_parser().parse_args(["--loop-blame", "leg"])).loop_blame == "leg"
     args = build_parser().parse_args(["--distance", "covered", "--loop-cycles", "0", "--no-escape",
                                       "--continue-past-64", "3", "--loop-radius-mm", "40"])
     config = config_from_args(args)
@@ -246,6 +270,7 @@ def test_defaults_and_command_line():
     ("elitism", 600, "--elitism must be in 0..population, got 600"),
     ("blind_bit", 7, "--blind-bit and --blind-after-target go together"),
     ("escape", 1, "--escape must be True or False, got 1"),
+    ("loop_blame", "phase", "--loop-blame must be one of cycle, leg, got 'phase'"),
 ])
 def test_config_refuses_bad_values_naming_the_option(field, value, message):
     with pytest.raises(ValueError) as info:
