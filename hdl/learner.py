@@ -14,16 +14,19 @@ Datapath
   lane's seven xorshift32 generators, a replica of the score RAM (both buffers: the previous
   pass's scores for its tournaments, this pass's being written), the tournament comparator and
   the row mutation datapath.
-- ``group[g]`` (g = 0..4, ``BANK_GROUP`` = 10 banks each): between the lanes and the banks, per
-  lane, a register of the lane's bank request (address), one of its bank write and one of the
-  row its bank read gave (zero unless that row is in the group). So a lane is wired to five
-  groups, not to the 50 banks (its row arrives as the OR of five 19-bit registers, not through a
-  50:1 multiplexer), and every path between a lane and a bank starts or ends at a register:
-  the cost is ``ga.hardware_ga.ROW_LATENCY`` = 3 cycles from a row's draw to its shadow write.
+- ``group[k]`` (k = 0..M-1, M = :func:`bank_groups` = L lanes): the banks of rows k, k + M, ...
+  Lane j draws row r - j when lane 0 draws row r, so the lanes ask M consecutive rows at most
+  in a cycle, each in its own group: a group serves one lane a cycle through one register of the
+  request (address, bank), one of the write and one read multiplexer of its banks; a lane's row
+  comes from the group of its row through an M:1 multiplexer into a register, and the host reads
+  through the same multiplexers. So each bank's read data goes to one multiplexer (not to every
+  lane and to a host gather of the 50 banks), and every path between a lane and a bank starts
+  or ends at a register: ``ga.hardware_ga.ROW_LATENCY`` = 3 cycles from a row's draw to its
+  shadow write.
 - A global slot counter (``tau`` in 0..C-1, ``slot`` in 0..S) whose value reaches lane j through
   j registers: lane j runs j cycles behind lane 0. A lane asks bank r in the cycle it draws its
-  row r, so two lanes never ask the same bank in one cycle (their rows differ by their lane
-  distance, less than C); the same holds for the bank writes, for the score writes and for the
+  row r, so two lanes never ask the same group in one cycle (their rows differ by their lane
+  distance, less than M); the same holds for the bank writes, for the score writes and for the
   running best (one lane finishes per cycle, in the children's order).
 - The result bus (the finishing lane's index and counts) is registered before the score, the
   running best and the score replicas (``ga.hardware_ga.RESULT_LATENCY`` = 1 cycle of drain).
@@ -34,10 +37,11 @@ Timing of a slot (lane time tau; C = max(N + 2, 2T + 54), ``ga.hardware_ga.slot_
   compared one cycle later: first of tournament a, then of b), draw 2T the crossover decision.
 - tau = 2T+1 .. 2T+50: row r = tau - 2T - 1 (stage 1): the six row generators draw, the parent
   (a or b) is chosen, the mutation command is computed from the draws, and the request goes to
-  the group of bank r; stage 2: the group register drives bank r's address; stage 3: the bank's
-  data goes into the group's register for that lane; stage 4 (tau = r + 2T + 4): the lane
-  mutates the row and writes it into its evaluator's shadow configuration, and the group
-  register latches the write, which lands in bank r of the next buffer in stage 5.
+  the group of bank r; stage 2: the group's register drives bank r's address; stage 3: the
+  bank's data goes through the group's and the lane's multiplexers into the lane's row register;
+  stage 4 (tau = r + 2T + 4): the lane mutates the row and writes it into its evaluator's shadow
+  configuration, and the group's write register latches it, which lands in bank r of the next
+  buffer in stage 5.
 - tau = C - 1: start the evaluator on the child (its rows all in the shadow). It runs N + 1
   cycles, during the next slot, while the next child is bred; its counts are scored and written
   to every score replica (the next buffer) and into the running best one cycle after it finishes.
@@ -76,7 +80,6 @@ from hdl.evaluator_ehw import EvaluatorEHW
 from hdl.ports import COUNT_BITS, DISTANCE_BITS, ModelWriteSignature, row_addr_bits
 
 TAU_BITS = 10  # C <= max(258, 2T + 54) < 1024 for T <= 480
-BANK_GROUP = 10  # population banks per group register (5 groups of 10 rows)
 ROW_INDEX_BITS = row_addr_bits(N_ROWS)
 # The evaluator's model-side inputs, broadcast from the learner to every lane's evaluator.
 _MODEL_MEMBERS = ("state", "motion", "next", "crash", "valid", "we")  # of ModelWriteSignature
@@ -95,6 +98,17 @@ def _xorshift(x):
     x = (x ^ (x << 13))[:32]
     x = (x ^ (x >> 17))[:32]
     return (x ^ (x << 5))[:32]
+
+
+def bank_groups(config: hg.HardwareGAConfig) -> int:
+    """The number M of bank groups: group k holds the banks of rows k, k + M, ... .
+
+    Lane j draws row r - j when lane 0 draws row r (its slot counter runs j cycles behind), so in
+    one slot the rows asked in a cycle are consecutive and M = L groups are enough for each group
+    to serve one lane a cycle. Lanes in different slots could both be in their row phase only if
+    a slot were shorter than 50 + L - 1 cycles (C >= 2T + 54: L > 2T + 5); then one group per
+    row (M = 50: the lanes' rows differ by less than C)."""
+    return config.lanes if config.lanes <= 2 * config.tournament + 5 else N_ROWS
 
 
 def index_bits(population: int) -> int:
@@ -393,58 +407,61 @@ class Learner(wiring.Component):
             stage = delayed
 
         # -- banks: the lanes while running, the host otherwise -----------------------------------------
-        # The banks come in groups of BANK_GROUP rows; each group has, per lane, a register of the
-        # lane's bank request (address), of its bank write and of the row its bank read gave
-        # (zero unless the row is in the group): a lane is wired to the groups (a few words each
-        # way), not to all 50 banks, and every path between a lane and a bank has a register.
+        # M = bank_groups(config) groups, group k holding the banks of rows k, k + M, ...: the
+        # lanes ask M consecutive rows at most in a cycle, so each group serves one lane a cycle
+        # and has one request register (address), one write register and one read multiplexer,
+        # whatever the lanes: a lane's row comes from the group of its row through an M:1
+        # multiplexer, and each bank's read data goes to its group's multiplexer only (the host
+        # reads through the same multiplexers). Every path between a lane and a bank starts or
+        # ends at a register.
+        n_groups = bank_groups(cfg)
+        groups = [list(range(k, N_ROWS, n_groups)) for k in range(n_groups)]
+        q_bits = max(1, (len(groups[0]) - 1).bit_length())
+        residue = Array(Const(r % n_groups, range(n_groups)) for r in range(N_ROWS))
+        quotient = Array(Const(r // n_groups, q_bits) for r in range(N_ROWS))
+        host = ~running
         host_row_r = Signal(ROW_INDEX_BITS)
         m.d.sync += host_row_r.eq(self.pop_row)
-        bank_data = Array(rd.data for rd, _ in banks)
-        m.d.comb += self.pop_rdata.eq(bank_data[host_row_r])
-        host = ~running
-        group_rows = [0] * L
-        for base in range(0, N_ROWS, BANK_GROUP):
-            rows = range(base, min(base + BANK_GROUP, N_ROWS))
-            g = base // BANK_GROUP
-
-            def in_group(row_index, rows=rows):
-                return (row_index >= rows[0]) & (row_index <= rows[-1])
-
-            reqs, writes = [], []
-            for j, lane in enumerate(lanes):
-                req = (Signal(name=f"g{g}_rd_en{j}"), Signal(ROW_INDEX_BITS, name=f"g{g}_rd_row{j}"),
-                       Signal(ib + 1, name=f"g{g}_rd_addr{j}"))
-                wreq = (Signal(name=f"g{g}_wr_en{j}"), Signal(ROW_INDEX_BITS, name=f"g{g}_wr_row{j}"),
-                        Signal(ib + 1, name=f"g{g}_wr_addr{j}"), Signal(ROW_BITS, name=f"g{g}_wr_data{j}"))
-                m.d.sync += [req[0].eq(lane.rd_en & in_group(lane.rd_row)), req[1].eq(lane.rd_row),
-                             req[2].eq(lane.rd_addr),
-                             wreq[0].eq(lane.wr_en & in_group(lane.wr_row)), wreq[1].eq(lane.wr_row),
-                             wreq[2].eq(lane.wr_addr), wreq[3].eq(lane.wr_data)]
-                reqs.append(req)
-                writes.append(wreq)
-                got = Signal(ROW_BITS, name=f"g{g}_data{j}")
-                sel = Array(banks[r][0].data for r in rows)[(lane.data_row - base)[:len(rows).bit_length()]]
-                m.d.sync += got.eq(Mux(lane.data_en & in_group(lane.data_row), sel, 0))
-                group_rows[j] = group_rows[j] | got
-            for r in rows:
+        host_addr = Cat(self.pop_index, cur_buf)
+        group_out = []
+        for k, rows in enumerate(groups):
+            # stage 2: the request of the lane whose row is in the group; stage 3: its data
+            req_q, req_addr = Signal(q_bits, name=f"g{k}_rd_q"), Signal(ib + 1, name=f"g{k}_rd_addr")
+            wr_en_r, wr_q = Signal(name=f"g{k}_wr_en"), Signal(q_bits, name=f"g{k}_wr_q")
+            wr_addr_r, wr_data_r = Signal(ib + 1, name=f"g{k}_wr_addr"), Signal(ROW_BITS, name=f"g{k}_wr_data")
+            q, addr, wen, wq, waddr, wdata = (Const(0, q_bits), Const(0, ib + 1), Const(0, 1),
+                                              Const(0, q_bits), Const(0, ib + 1), Const(0, ROW_BITS))
+            for lane in lanes:
+                hit = lane.rd_en & (residue[lane.rd_row] == k)
+                q = q | Mux(hit, quotient[lane.rd_row], 0)
+                addr = addr | Mux(hit, lane.rd_addr, 0)
+                whit = lane.wr_en & (residue[lane.wr_row] == k)
+                wen = wen | whit
+                wq = wq | Mux(whit, quotient[lane.wr_row], 0)
+                waddr = waddr | Mux(whit, lane.wr_addr, 0)
+                wdata = wdata | Mux(whit, lane.wr_data, 0)
+            m.d.sync += [req_q.eq(q), req_addr.eq(addr), wr_en_r.eq(wen), wr_q.eq(wq),
+                         wr_addr_r.eq(waddr), wr_data_r.eq(wdata)]
+            sel = Signal(q_bits, name=f"g{k}_sel")  # the bank whose data is read this cycle
+            m.d.sync += sel.eq(Mux(host, quotient[self.pop_row], req_q))
+            out = Signal(ROW_BITS, name=f"g{k}_out")
+            m.d.comb += out.eq(Array(banks[r][0].data for r in rows)[sel])
+            group_out.append(out)
+            for i, r in enumerate(rows):
                 rd, wr = banks[r]
-                rd_addr = Const(0, ib + 1)
-                wr_en, wr_addr, wr_data = Const(0, 1), Const(0, ib + 1), Const(0, ROW_BITS)
-                for (en, row_i, addr), (wen, wrow, waddr, wdata) in zip(reqs, writes):
-                    rd_addr = rd_addr | Mux(en & (row_i == r), addr, 0)
-                    hit = wen & (wrow == r)
-                    wr_en = wr_en | hit
-                    wr_addr = wr_addr | Mux(hit, waddr, 0)
-                    wr_data = wr_data | Mux(hit, wdata, 0)
                 host_we = self.pop_we & (self.pop_row == r) & self.ready
                 m.d.comb += [
-                    rd.addr.eq(Mux(host, Cat(self.pop_index, cur_buf), rd_addr)),
-                    wr.addr.eq(Mux(host, Cat(self.pop_index, cur_buf), wr_addr)),
-                    wr.data.eq(Mux(host, self.pop_data, wr_data)),
-                    wr.en.eq(Mux(host, host_we, wr_en)),
+                    rd.addr.eq(Mux(host, host_addr, req_addr)),
+                    wr.addr.eq(Mux(host, host_addr, wr_addr_r)),
+                    wr.data.eq(Mux(host, self.pop_data, wr_data_r)),
+                    wr.en.eq(Mux(host, host_we, wr_en_r & (wr_q == i))),
                 ]
-        for j, lane in enumerate(lanes):
-            m.d.comb += lane.rd_data.eq(group_rows[j])
+        group_out = Array(group_out)
+        m.d.comb += self.pop_rdata.eq(group_out[residue[host_row_r]])
+        for j, lane in enumerate(lanes):  # stage 3 -> 4: the lane's row from its group
+            got = Signal(ROW_BITS, name=f"lane{j}_row")
+            m.d.sync += got.eq(Mux(lane.data_en, group_out[residue[lane.data_row]], 0))
+            m.d.comb += lane.rd_data.eq(got)
 
         # -- results: score, score replicas, running best -------------------------------------------
         d = MAX_MOTION_DISTANCE_MM
@@ -526,122 +543,3 @@ class Learner(wiring.Component):
                         m.d.sync += [tau.eq(0), slot.eq(0), active.eq(1)]
                         m.next = "Run"
         return m
-
-
-# -- host side, for Amaranth's simulator -----------------------------------------------------------
-
-
-class LearnerSimHost:
-    """The host side of the learner's ports in Amaranth's simulator (testbench context ``ctx``)."""
-
-    def __init__(self, ctx, dut: Learner):
-        from hdl.evaluator_ehw import EvaluatorSimHost
-
-        self.ctx, self.dut = ctx, dut
-        self.model_host = EvaluatorSimHost(ctx, dut)  # the same model/state ports and ready
-        self.cycle = 0
-
-    async def tick(self):
-        await self.ctx.tick()
-        self.cycle += 1
-        self.model_host.cycle = self.cycle
-
-    async def wait_ready(self):
-        while not self.ctx.get(self.dut.ready):
-            await self.tick()
-
-    async def write_model(self, model):
-        await self.model_host.write_model(model)
-        self.cycle = self.model_host.cycle
-
-    async def observe(self, model, state, motion, next_state, crashed):
-        await self.model_host.observe(model, state, motion, next_state, crashed)
-        self.cycle = self.model_host.cycle
-
-    async def seed(self, seed: int):
-        self.ctx.set(self.dut.seed, int(seed))
-        self.ctx.set(self.dut.seed_we, 1)
-        await self.tick()
-        self.ctx.set(self.dut.seed_we, 0)
-
-    async def write_population(self, population):
-        ctx, dut = self.ctx, self.dut
-        for i, genome in enumerate(population):
-            for r, word in enumerate(genome):
-                ctx.set(dut.pop_index, i)
-                ctx.set(dut.pop_row, r)
-                ctx.set(dut.pop_data, int(word))
-                ctx.set(dut.pop_we, 1)
-                await self.tick()
-        ctx.set(dut.pop_we, 0)
-
-    async def read_genome(self, index: int) -> list[int]:
-        ctx, dut = self.ctx, self.dut
-        rows = []
-        for r in range(N_ROWS):  # the edge samples the address; the data is there after it
-            ctx.set(dut.pop_index, index)
-            ctx.set(dut.pop_row, r)
-            await self.tick()
-            rows.append(ctx.get(dut.pop_rdata))
-        return rows
-
-    async def learn(self, generations: int, reflex: bool = True, avoid=None):
-        """Run ``generations`` passes. Returns (download index, (crashes, loops, distance), score,
-        cycles register, clock edges from the start strobe to done); the download is the escape
-        child when ``avoid`` = (state, motion) is given and one exists, else the best."""
-        ctx, dut = self.ctx, self.dut
-        ctx.set(dut.reflex_en, int(reflex))
-        ctx.set(dut.avoid_en, int(avoid is not None))
-        if avoid is not None:
-            ctx.set(dut.avoid_state, int(avoid[0]))
-            ctx.set(dut.avoid_motion, int(avoid[1]))
-        ctx.set(dut.generations, generations)
-        ctx.set(dut.start, 1)
-        first = self.cycle
-        await self.tick()
-        ctx.set(dut.start, 0)
-        while not ctx.get(dut.done):
-            await self.tick()
-        kind = "escape" if avoid is not None and ctx.get(dut.escape_found) else "best"
-        get = lambda name: ctx.get(getattr(dut, f"{kind}_{name}"))  # noqa: E731
-        counts = (get("crashes"), get("loops"), get("distance"))
-        return get("index"), counts, get("score"), ctx.get(dut.cycles), self.cycle - first
-
-
-def simulate_learning(config: hg.HardwareGAConfig, seed: int, population, phases,
-                      read_population: bool = True, distance_rule: str = "covered"):
-    """Run a Learner in Amaranth's simulator: seed it, write ``population``, then for each
-    ``(observations, generations[, avoid])`` of ``phases`` apply the observations (a list of
-    (state, motion, next_state, crashed), host mirror ``ga.world_model.WorldModel``) and learn.
-    Returns one dict per phase: download index, counts, score, cycles, edges, population (if
-    read)."""
-    from amaranth.sim import Simulator
-
-    from ga.world_model import WorldModel
-
-    dut = Learner(config, distance_rule)
-    out = []
-
-    async def testbench(ctx):
-        host = LearnerSimHost(ctx, dut)
-        await host.wait_ready()
-        await host.seed(seed)
-        await host.write_population(population)
-        mirror = WorldModel()
-        for observations, generations, *avoid in phases:
-            for obs in observations:
-                await host.observe(mirror, *obs)
-            best, counts, score, cycles, edges = await host.learn(generations, avoid=avoid[0] if avoid else None)
-            record = {"best_index": best, "counts": counts, "score": score, "cycles": cycles,
-                      "edges": edges, "n_states": mirror.n_states}
-            if read_population:
-                record["population"] = [await host.read_genome(i) for i in range(config.population)]
-            else:
-                record["best"] = await host.read_genome(best)
-            out.append(record)
-
-    sim = Simulator(dut)
-    sim.add_clock(1e-8)
-    sim.add_testbench(testbench)
-    sim.run()
-    return out
