@@ -140,7 +140,8 @@ def test_bank_groups_serve_one_lane_a_cycle(tournament):
     for lanes in range(1, 49):
         groups = bank_groups(hg.HardwareGAConfig(population=100, tournament=tournament, lanes=lanes))
         assert lanes <= groups <= N_ROWS
-        for c in range(hg.slot_cycles(0, tournament), 259):
+        # C from the shortest slot to 98 cycles past it: beyond, no two slots draw rows in one cycle
+        for c in range(hg.slot_cycles(0, tournament), hg.slot_cycles(0, tournament) + N_ROWS + 48):
             for t in range(lanes, lanes + c):  # lane j sees the slot counter j cycles late
                 rows = [(t - j) % c - row_start for j in range(lanes)]
                 asked = [r % groups for r in rows if 0 <= r < N_ROWS]
