@@ -9,21 +9,24 @@ Datapath
   ``Memory(shape=19, depth=2 * 2^ceil(log2 P))`` each, address ``Cat(index, buffer)``. One
   synchronous read port and one write port per bank: in a pass the lanes read the parents from
   the current buffer and write the children into the other one.
-- ``lane[j]`` (:class:`Lane`): an ``EvaluatorEHW`` (its own copy of the world-model RAM, state
+- ``lane[j]`` (``hdl.learner_lane.Lane``): an ``EvaluatorEHW`` (its own copy of the world-model RAM, state
   set and trace engine: every model write goes to every lane, so the copies stay identical), the
   lane's seven xorshift32 generators, a replica of the score RAM (both buffers: the previous
   pass's scores for its tournaments, this pass's being written), the tournament comparator and
   the row mutation datapath.
-- ``group[g]`` (g = 0..4, ``BANK_GROUP`` = 10 banks each): between the lanes and the banks, per
-  lane, a register of the lane's bank request (address), one of its bank write and one of the
-  row its bank read gave (zero unless that row is in the group). So a lane is wired to five
-  groups, not to the 50 banks (its row arrives as the OR of five 19-bit registers, not through a
-  50:1 multiplexer), and every path between a lane and a bank starts or ends at a register:
-  the cost is ``ga.hardware_ga.ROW_LATENCY`` = 3 cycles from a row's draw to its shadow write.
+- ``group[k]`` (k = 0..M-1, M = :func:`bank_groups` = L lanes): the banks of rows k, k + M, ...
+  Lane j draws row r - j when lane 0 draws row r, so the lanes ask M consecutive rows at most
+  in a cycle, each in its own group: a group serves one lane a cycle through one register of the
+  request (address, bank), one of the write and one read multiplexer of its banks; a lane's row
+  comes from the group of its row through an M:1 multiplexer into a register, and the host reads
+  through the same multiplexers. So each bank's read data goes to one multiplexer (not to every
+  lane and to a host gather of the 50 banks), and every path between a lane and a bank starts
+  or ends at a register: ``ga.hardware_ga.ROW_LATENCY`` = 3 cycles from a row's draw to its
+  shadow write.
 - A global slot counter (``tau`` in 0..C-1, ``slot`` in 0..S) whose value reaches lane j through
   j registers: lane j runs j cycles behind lane 0. A lane asks bank r in the cycle it draws its
-  row r, so two lanes never ask the same bank in one cycle (their rows differ by their lane
-  distance, less than C); the same holds for the bank writes, for the score writes and for the
+  row r, so two lanes never ask the same group in one cycle (their rows differ by their lane
+  distance, less than M); the same holds for the bank writes, for the score writes and for the
   running best (one lane finishes per cycle, in the children's order).
 - The result bus (the finishing lane's index and counts) is registered before the score, the
   running best and the score replicas (``ga.hardware_ga.RESULT_LATENCY`` = 1 cycle of drain).
@@ -34,10 +37,11 @@ Timing of a slot (lane time tau; C = max(N + 2, 2T + 54), ``ga.hardware_ga.slot_
   compared one cycle later: first of tournament a, then of b), draw 2T the crossover decision.
 - tau = 2T+1 .. 2T+50: row r = tau - 2T - 1 (stage 1): the six row generators draw, the parent
   (a or b) is chosen, the mutation command is computed from the draws, and the request goes to
-  the group of bank r; stage 2: the group register drives bank r's address; stage 3: the bank's
-  data goes into the group's register for that lane; stage 4 (tau = r + 2T + 4): the lane
-  mutates the row and writes it into its evaluator's shadow configuration, and the group
-  register latches the write, which lands in bank r of the next buffer in stage 5.
+  the group of bank r; stage 2: the group's register drives bank r's address; stage 3: the
+  bank's data goes through the group's and the lane's multiplexers into the lane's row register;
+  stage 4 (tau = r + 2T + 4): the lane mutates the row and writes it into its evaluator's shadow
+  configuration, and the group's write register latches it, which lands in bank r of the next
+  buffer in stage 5.
 - tau = C - 1: start the evaluator on the child (its rows all in the shadow). It runs N + 1
   cycles, during the next slot, while the next child is bred; its counts are scored and written
   to every score replica (the next buffer) and into the running best one cycle after it finishes.
@@ -69,248 +73,23 @@ from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
 from ga import hardware_ga as hg
-from ga.genome import N_ROWS, OUTPUT_SHIFT, ROW_BITS
+from ga.genome import N_ROWS, ROW_BITS
 from ga.motions import MAX_MOTION_DISTANCE_MM, N_INPUTS, N_OUTPUTS
-from ga.operators import CONTRADICTION, DONT_CARE, NEGATIVE, POSITIVE
-from hdl.evaluator_ehw import EvaluatorEHW
-from hdl.ports import COUNT_BITS, DISTANCE_BITS, ModelWriteSignature, row_addr_bits
+from hdl.learner_lane import ROW_INDEX_BITS, TAU_BITS, Lane, broadcast, index_bits, model_ports
+from hdl.ports import COUNT_BITS, DISTANCE_BITS
 
-TAU_BITS = 10  # C <= max(258, 2T + 54) < 1024 for T <= 480
-BANK_GROUP = 10  # population banks per group register (5 groups of 10 rows)
-ROW_INDEX_BITS = row_addr_bits(N_ROWS)
-# The evaluator's model-side inputs, broadcast from the learner to every lane's evaluator.
-_MODEL_MEMBERS = ("state", "motion", "next", "crash", "valid", "we")  # of ModelWriteSignature
-_STATE_PORTS = ("state_value", "state_we", "clear", "reflex_en")
+__all__ = ["Lane", "Learner", "bank_groups", "index_bits"]
 
 
-def _broadcast(m, source, sink):
-    """Drive ``sink``'s model port and state inputs from ``source``'s (one writer, many copies:
-    ``wiring.connect`` joins one port to one)."""
-    m.d.comb += [getattr(sink.model, name).eq(getattr(source.model, name)) for name in _MODEL_MEMBERS]
-    m.d.comb += [getattr(sink, name).eq(getattr(source, name)) for name in _STATE_PORTS]
+def bank_groups(config: hg.HardwareGAConfig) -> int:
+    """The number M of bank groups: group k holds the banks of rows k, k + M, ... .
 
-
-def _xorshift(x):
-    """One xorshift32 step as a 32-bit expression (``ga.hardware_ga.xorshift32``)."""
-    x = (x ^ (x << 13))[:32]
-    x = (x ^ (x >> 17))[:32]
-    return (x ^ (x << 5))[:32]
-
-
-def index_bits(population: int) -> int:
-    return max(1, (population - 1).bit_length())
-
-
-def _model_ports():
-    """The evaluator's world-model side: the model write port and the state-set inputs."""
-    return {"model": In(ModelWriteSignature()), "state_value": In(N_INPUTS), "state_we": In(1),
-            "clear": In(1), "reflex_en": In(1)}
-
-
-class Lane(wiring.Component):
-    """One evaluator lane with its generators, tournament and row mutation (see the module
-    docstring). ``index`` is the lane number j (its generators' salts).
-
-    Ports: ``tau``, ``slot``, ``active`` (the slot counter as lane j sees it), ``c_last`` (C - 1),
-    ``copy_mode``, ``cur_buf``, ``best_prev`` (pass constants), ``seed``/``seed_we``, the score
-    replica's write port ``score_*``, the model port and state inputs (to the evaluator), the bank request
-    ``rd_en``/``rd_row``/``rd_addr`` and the row ``data_row`` whose data is expected on
-    ``rd_data`` this cycle, the bank write ``wr_*``, and the result ``result_valid``,
-    ``result_index``, ``crashes``, ``loops``, ``distance``; ``n_states``, ``ready`` from the
-    evaluator.
-    """
-
-    def __init__(self, config: hg.HardwareGAConfig, index: int, distance_rule: str = "covered"):
-        self.config = config
-        self.index = index
-        self.distance_rule = distance_rule
-        ib = index_bits(config.population)
-        self.ib = ib
-        ports = {
-            "tau": In(TAU_BITS), "slot": In(range(config.slots + 1)), "active": In(1),
-            "c_last": In(TAU_BITS), "copy_mode": In(1), "cur_buf": In(1), "best_prev": In(ib),
-            "seed": In(32), "seed_we": In(1),
-            "score_addr": In(ib + 1), "score_data": In(hg.SCORE_BITS), "score_we": In(1),
-            "rd_en": Out(1), "rd_row": Out(ROW_INDEX_BITS), "rd_addr": Out(ib + 1),
-            "data_en": Out(1), "data_row": Out(ROW_INDEX_BITS), "rd_data": In(ROW_BITS),
-            "wr_en": Out(1), "wr_row": Out(ROW_INDEX_BITS), "wr_addr": Out(ib + 1),
-            "wr_data": Out(ROW_BITS),
-            "result_valid": Out(1), "result_index": Out(ib),
-            "crashes": Out(COUNT_BITS), "loops": Out(COUNT_BITS), "distance": Out(DISTANCE_BITS),
-            "n_states": Out(COUNT_BITS), "ready": Out(1),
-            "avoid_en": In(1), "avoid_state": In(N_INPUTS), "avoid_motion": In(N_OUTPUTS),
-            "result_eligible": Out(1),
-        }
-        ports.update(_model_ports())
-        super().__init__(ports)
-
-    def elaborate(self, platform):
-        m = Module()
-        cfg, ib, T, P, L = self.config, self.ib, self.config.tournament, self.config.population, self.config.lanes
-        ev = m.submodules.evaluator = EvaluatorEHW(double_buffer=True, distance_rule=self.distance_rule,
-                                                   lookahead=True)
-        _broadcast(m, self, ev)
-        m.d.comb += [self.n_states.eq(ev.n_states), self.ready.eq(ev.ready)]
-
-        scores = m.submodules.scores = Memory(shape=hg.SCORE_BITS, depth=2 << ib, init=[])
-        score_wr = scores.write_port()
-        score_rd = scores.read_port()
-        m.d.comb += [score_wr.addr.eq(self.score_addr), score_wr.data.eq(self.score_data),
-                     score_wr.en.eq(self.score_we)]
-
-        # -- generators -----------------------------------------------------------------------
-        gens = [Signal(32, name=f"gen{g}") for g in range(hg.GENERATORS)]
-        draws = [Signal(32, name=f"draw{g}") for g in range(hg.GENERATORS)]
-        for g in range(hg.GENERATORS):
-            m.d.comb += draws[g].eq(_xorshift(gens[g]))
-            salted = Signal(32, name=f"salted{g}")
-            m.d.comb += salted.eq(self.seed ^ hg.seed_salt(self.index, g))
-            with m.If(self.seed_we):
-                m.d.sync += gens[g].eq(Mux(salted == 0, hg.SEED_FALLBACK, salted))
-
-        tau, slot = self.tau, self.slot
-        breeding_slot = self.active & (slot < cfg.slots)
-        sel_step = breeding_slot & (tau < 2 * T + 1)
-        row_start = 2 * T + 1
-        row_step = breeding_slot & (tau >= row_start) & (tau < row_start + N_ROWS)
-        with m.If(sel_step):
-            m.d.sync += gens[hg.SEL].eq(draws[hg.SEL])
-        with m.If(row_step):
-            m.d.sync += [gens[g].eq(draws[g]) for g in hg.ROW_GENERATORS]
-
-        child = Signal(range(cfg.slots * L + 1))
-        m.d.comb += child.eq(slot * L + self.index)
-        child_valid = child < P
-        elite = ~self.copy_mode & (child == 0)
-        plain = self.copy_mode | elite  # copied unchanged: no crossover, no mutation
-
-        # -- selection: tournaments a (draws 0..T-1) and b (T..2T-1), crossover (draw 2T) ----------
-        field = draws[hg.SEL][hg.FIELD16_SHIFT:]
-        contestant = Signal(ib)
-        m.d.comb += [
-            contestant.eq((field * P)[16:]),
-            score_rd.addr.eq(Cat(contestant, self.cur_buf)),  # the scores of the parents' buffer
-        ]
-        cont_r = Signal(ib)
-        k_r = Signal(TAU_BITS)  # the draw whose score is on score_rd.data
-        compare = Signal()
-        m.d.sync += [cont_r.eq(contestant), k_r.eq(tau), compare.eq(sel_step & (tau < 2 * T))]
-        par_a, par_b = Signal(ib), Signal(ib)
-        best_a, best_b = Signal(hg.SCORE_BITS), Signal(hg.SCORE_BITS)
-        cross = Signal()
-        got = score_rd.data
-        with m.If(compare):
-            with m.If(k_r < T):
-                with m.If((k_r == 0) | (got > best_a)):
-                    m.d.sync += [par_a.eq(cont_r), best_a.eq(got)]
-            with m.Else():
-                with m.If((k_r == T) | (got > best_b)):
-                    m.d.sync += [par_b.eq(cont_r), best_b.eq(got)]
-        with m.If(sel_step & (tau == 2 * T)):
-            m.d.sync += cross.eq(field < cfg.cross_threshold)
-
-        # -- breeding, stage 1: draw, choose the parent, ask bank r; the mutation command -----------
-        # (ROW_LATENCY = 3 cycles to the shadow: the banks' group registers latch the address
-        # (stage 2), the bank reads (its data in stage 3), the group registers latch the data
-        # (stage 4: mutated and written into the shadow; the bank write is latched by the group
-        # registers and lands in stage 5).)
-        row = Signal(ROW_INDEX_BITS)
-        m.d.comb += row.eq(tau - row_start)
-        r0, r1, r2, r3, r4, r5 = (draws[g] for g in hg.ROW_GENERATORS)
-        take_b = cross & ~plain & r0[hg.TAKE_B_BIT]
-        source = Mux(self.copy_mode, child, Mux(elite, self.best_prev, Mux(take_b, par_b, par_a)))
-        m.d.comb += [
-            self.rd_en.eq(row_step),
-            self.rd_row.eq(row),
-            self.rd_addr.eq(Cat(source[:ib], self.cur_buf)),
-        ]
-        # the mutation command (ga.hardware_ga._mutate_rows), from this row's draws
-        fresh_fields = []
-        for i in range(N_INPUTS):
-            byte = (r4 if i < 4 else r5)[8 * (i % 4):8 * (i % 4) + 8]
-            negative = r3[hg.FRESH_POLARITY_SHIFT + i]
-            fresh_fields.append(Mux(byte < cfg.connect_threshold, Cat(~negative, negative), DONT_CARE))
-        cmd = {
-            "lit_event": ~plain & (r0[hg.FIELD16_SHIFT:] < cfg.literal_threshold),
-            "lit_index": r0[hg.LITERAL_INDEX_SHIFT:hg.LITERAL_INDEX_SHIFT + 3],
-            "polarity": r0[hg.POLARITY_BIT],
-            "to_dc": r0[hg.TO_DC_SHIFT:hg.TO_DC_SHIFT + 8] < cfg.to_dc_threshold,
-            "out_event": ~plain & (r1[hg.FIELD16_SHIFT:] < cfg.output_threshold),
-            "out_bit": (r1[:8] * 3)[8:10],
-            "sw_event": ~plain & (r2[hg.FIELD16_SHIFT:] < cfg.switch_threshold),
-            "code": ((r2[:8] * 7)[8:11] + 1)[:N_OUTPUTS],
-            "rep_event": ~plain & (r3[hg.FIELD16_SHIFT:] < cfg.replace_threshold),
-            "fresh": Cat(*fresh_fields, ((r3[:8] * 7)[8:11] + 1)[:N_OUTPUTS]),
-        }
-        # the row's pipeline: stage k holds (valid, row, command) of the row drawn k - 1 cycles ago
-        stages = [(row_step, row, cmd)]
-        for k in (2, 3, 4):
-            valid_k = Signal(name=f"s{k}_valid")
-            row_k = Signal(ROW_INDEX_BITS, name=f"s{k}_row")
-            cmd_k = {}
-            for key, value in stages[-1][2].items():
-                cmd_k[key] = Signal(len(value), name=f"s{k}_{key}")
-                m.d.sync += cmd_k[key].eq(value)
-            m.d.sync += [valid_k.eq(stages[-1][0]), row_k.eq(stages[-1][1])]
-            stages.append((valid_k, row_k, cmd_k))
-        m.d.comb += [self.data_en.eq(stages[2][0]), self.data_row.eq(stages[2][1])]
-        stage4, row_r, c = stages[3]
-
-        # -- breeding, stage 4: mutate the row (ga.hardware_ga._mutate_rows), write it -------------
-        word = self.rd_data
-        fields = []
-        for i in range(N_INPUTS):
-            old = word[2 * i:2 * i + 2]
-            new = Signal(2, name=f"new_field{i}")
-            with m.Switch(old):
-                with m.Case(DONT_CARE):
-                    m.d.comb += new.eq(Mux(c["polarity"], NEGATIVE, POSITIVE))
-                with m.Case(CONTRADICTION):
-                    m.d.comb += new.eq(DONT_CARE)
-                with m.Case(POSITIVE):
-                    m.d.comb += new.eq(Mux(c["to_dc"], DONT_CARE, NEGATIVE))
-                with m.Case(NEGATIVE):
-                    m.d.comb += new.eq(Mux(c["to_dc"], DONT_CARE, POSITIVE))
-            fields.append(Mux(c["lit_event"] & (c["lit_index"] == i), new, old))
-        outputs = Signal(N_OUTPUTS)
-        m.d.comb += outputs.eq(word[OUTPUT_SHIFT:] ^ Cat(*[c["out_event"] & (c["out_bit"] == b)
-                                                          for b in range(N_OUTPUTS)]))
-        switched = Mux(outputs != 0, 0, c["code"])
-        mutated = Signal(ROW_BITS)
-        m.d.comb += mutated.eq(Mux(c["rep_event"], c["fresh"],
-                                   Cat(*fields, Mux(c["sw_event"], switched, outputs))))
-        m.d.comb += [
-            ev.row.addr.eq(row_r), ev.row.data.eq(mutated), ev.row.we.eq(stage4),
-            self.wr_en.eq(stage4 & child_valid), self.wr_row.eq(row_r),
-            self.wr_addr.eq(Cat(child[:ib], ~self.cur_buf)), self.wr_data.eq(mutated),
-        ]
-
-        # -- the escape: the child's array motion in avoid_state, one row per cycle as it streams -----
-        violated = Cat(*[Cat(~self.avoid_state[i], self.avoid_state[i]) for i in range(N_INPUTS)])
-        fires = (mutated[:OUTPUT_SHIFT] & violated) == 0
-        motion_acc = Signal(N_OUTPUTS)
-        motion_next = Signal(N_OUTPUTS)
-        m.d.comb += motion_next.eq(motion_acc)
-        with m.If(stage4):
-            m.d.comb += motion_next.eq(Mux(row_r == 0, 0, motion_acc) | Mux(fires, mutated[OUTPUT_SHIFT:], 0))
-        m.d.sync += motion_acc.eq(motion_next)
-
-        # -- evaluation: start at the slot's last cycle, collect at done -----------------------------
-        eval_index = Signal(ib)
-        eval_valid = Signal()
-        eval_motion = Signal(N_OUTPUTS)
-        start = breeding_slot & (tau == self.c_last) & child_valid
-        m.d.comb += ev.start.eq(start)
-        with m.If(start):
-            m.d.sync += [eval_index.eq(child[:ib]), eval_valid.eq(1), eval_motion.eq(motion_next)]
-        with m.Elif(ev.done):
-            m.d.sync += eval_valid.eq(0)
-        m.d.comb += [
-            self.result_valid.eq(ev.done & eval_valid), self.result_index.eq(eval_index),
-            self.result_eligible.eq(self.avoid_en & (eval_motion != self.avoid_motion)),
-            self.crashes.eq(ev.crashes), self.loops.eq(ev.loops), self.distance.eq(ev.distance),
-        ]
-        return m
+    Lane j draws row r - j when lane 0 draws row r (its slot counter runs j cycles behind), so in
+    one slot the rows asked in a cycle are consecutive and M = L groups are enough for each group
+    to serve one lane a cycle. Lanes in different slots could both be in their row phase only if
+    a slot were shorter than 50 + L - 1 cycles (C >= 2T + 54: L > 2T + 5); then one group per
+    row (M = 50: the lanes' rows differ by less than C)."""
+    return config.lanes if config.lanes <= 2 * config.tournament + 5 else N_ROWS
 
 
 class Learner(wiring.Component):
@@ -347,7 +126,7 @@ class Learner(wiring.Component):
             "escape_crashes": Out(COUNT_BITS), "escape_loops": Out(COUNT_BITS),
             "escape_distance": Out(DISTANCE_BITS),
         }
-        ports.update(_model_ports())
+        ports.update(model_ports())
         super().__init__(ports)
 
     def elaborate(self, platform):
@@ -356,7 +135,7 @@ class Learner(wiring.Component):
         lanes = [Lane(cfg, j, self.distance_rule) for j in range(L)]
         for j, lane in enumerate(lanes):
             m.submodules[f"lane{j}"] = lane
-            _broadcast(m, self, lane)
+            broadcast(m, self, lane)
         banks = []
         for r in range(N_ROWS):
             mem = Memory(shape=ROW_BITS, depth=2 << ib, init=[])
@@ -393,58 +172,61 @@ class Learner(wiring.Component):
             stage = delayed
 
         # -- banks: the lanes while running, the host otherwise -----------------------------------------
-        # The banks come in groups of BANK_GROUP rows; each group has, per lane, a register of the
-        # lane's bank request (address), of its bank write and of the row its bank read gave
-        # (zero unless the row is in the group): a lane is wired to the groups (a few words each
-        # way), not to all 50 banks, and every path between a lane and a bank has a register.
+        # M = bank_groups(config) groups, group k holding the banks of rows k, k + M, ...: the
+        # lanes ask M consecutive rows at most in a cycle, so each group serves one lane a cycle
+        # and has one request register (address), one write register and one read multiplexer,
+        # whatever the lanes: a lane's row comes from the group of its row through an M:1
+        # multiplexer, and each bank's read data goes to its group's multiplexer only (the host
+        # reads through the same multiplexers). Every path between a lane and a bank starts or
+        # ends at a register.
+        n_groups = bank_groups(cfg)
+        groups = [list(range(k, N_ROWS, n_groups)) for k in range(n_groups)]
+        q_bits = max(1, (len(groups[0]) - 1).bit_length())
+        residue = Array(Const(r % n_groups, range(n_groups)) for r in range(N_ROWS))
+        quotient = Array(Const(r // n_groups, q_bits) for r in range(N_ROWS))
+        host = ~running
         host_row_r = Signal(ROW_INDEX_BITS)
         m.d.sync += host_row_r.eq(self.pop_row)
-        bank_data = Array(rd.data for rd, _ in banks)
-        m.d.comb += self.pop_rdata.eq(bank_data[host_row_r])
-        host = ~running
-        group_rows = [0] * L
-        for base in range(0, N_ROWS, BANK_GROUP):
-            rows = range(base, min(base + BANK_GROUP, N_ROWS))
-            g = base // BANK_GROUP
-
-            def in_group(row_index, rows=rows):
-                return (row_index >= rows[0]) & (row_index <= rows[-1])
-
-            reqs, writes = [], []
-            for j, lane in enumerate(lanes):
-                req = (Signal(name=f"g{g}_rd_en{j}"), Signal(ROW_INDEX_BITS, name=f"g{g}_rd_row{j}"),
-                       Signal(ib + 1, name=f"g{g}_rd_addr{j}"))
-                wreq = (Signal(name=f"g{g}_wr_en{j}"), Signal(ROW_INDEX_BITS, name=f"g{g}_wr_row{j}"),
-                        Signal(ib + 1, name=f"g{g}_wr_addr{j}"), Signal(ROW_BITS, name=f"g{g}_wr_data{j}"))
-                m.d.sync += [req[0].eq(lane.rd_en & in_group(lane.rd_row)), req[1].eq(lane.rd_row),
-                             req[2].eq(lane.rd_addr),
-                             wreq[0].eq(lane.wr_en & in_group(lane.wr_row)), wreq[1].eq(lane.wr_row),
-                             wreq[2].eq(lane.wr_addr), wreq[3].eq(lane.wr_data)]
-                reqs.append(req)
-                writes.append(wreq)
-                got = Signal(ROW_BITS, name=f"g{g}_data{j}")
-                sel = Array(banks[r][0].data for r in rows)[(lane.data_row - base)[:len(rows).bit_length()]]
-                m.d.sync += got.eq(Mux(lane.data_en & in_group(lane.data_row), sel, 0))
-                group_rows[j] = group_rows[j] | got
-            for r in rows:
+        host_addr = Cat(self.pop_index, cur_buf)
+        group_out = []
+        for k, rows in enumerate(groups):
+            # stage 2: the request of the lane whose row is in the group; stage 3: its data
+            req_q, req_addr = Signal(q_bits, name=f"g{k}_rd_q"), Signal(ib + 1, name=f"g{k}_rd_addr")
+            wr_en_r, wr_q = Signal(name=f"g{k}_wr_en"), Signal(q_bits, name=f"g{k}_wr_q")
+            wr_addr_r, wr_data_r = Signal(ib + 1, name=f"g{k}_wr_addr"), Signal(ROW_BITS, name=f"g{k}_wr_data")
+            q, addr, wen, wq, waddr, wdata = (Const(0, q_bits), Const(0, ib + 1), Const(0, 1),
+                                              Const(0, q_bits), Const(0, ib + 1), Const(0, ROW_BITS))
+            for lane in lanes:
+                hit = lane.rd_en & (residue[lane.rd_row] == k)
+                q = q | Mux(hit, quotient[lane.rd_row], 0)
+                addr = addr | Mux(hit, lane.rd_addr, 0)
+                whit = lane.wr_en & (residue[lane.wr_row] == k)
+                wen = wen | whit
+                wq = wq | Mux(whit, quotient[lane.wr_row], 0)
+                waddr = waddr | Mux(whit, lane.wr_addr, 0)
+                wdata = wdata | Mux(whit, lane.wr_data, 0)
+            m.d.sync += [req_q.eq(q), req_addr.eq(addr), wr_en_r.eq(wen), wr_q.eq(wq),
+                         wr_addr_r.eq(waddr), wr_data_r.eq(wdata)]
+            sel = Signal(q_bits, name=f"g{k}_sel")  # the bank whose data is read this cycle
+            m.d.sync += sel.eq(Mux(host, quotient[self.pop_row], req_q))
+            out = Signal(ROW_BITS, name=f"g{k}_out")
+            m.d.comb += out.eq(Array(banks[r][0].data for r in rows)[sel])
+            group_out.append(out)
+            for i, r in enumerate(rows):
                 rd, wr = banks[r]
-                rd_addr = Const(0, ib + 1)
-                wr_en, wr_addr, wr_data = Const(0, 1), Const(0, ib + 1), Const(0, ROW_BITS)
-                for (en, row_i, addr), (wen, wrow, waddr, wdata) in zip(reqs, writes):
-                    rd_addr = rd_addr | Mux(en & (row_i == r), addr, 0)
-                    hit = wen & (wrow == r)
-                    wr_en = wr_en | hit
-                    wr_addr = wr_addr | Mux(hit, waddr, 0)
-                    wr_data = wr_data | Mux(hit, wdata, 0)
                 host_we = self.pop_we & (self.pop_row == r) & self.ready
                 m.d.comb += [
-                    rd.addr.eq(Mux(host, Cat(self.pop_index, cur_buf), rd_addr)),
-                    wr.addr.eq(Mux(host, Cat(self.pop_index, cur_buf), wr_addr)),
-                    wr.data.eq(Mux(host, self.pop_data, wr_data)),
-                    wr.en.eq(Mux(host, host_we, wr_en)),
+                    rd.addr.eq(Mux(host, host_addr, req_addr)),
+                    wr.addr.eq(Mux(host, host_addr, wr_addr_r)),
+                    wr.data.eq(Mux(host, self.pop_data, wr_data_r)),
+                    wr.en.eq(Mux(host, host_we, wr_en_r & (wr_q == i))),
                 ]
-        for j, lane in enumerate(lanes):
-            m.d.comb += lane.rd_data.eq(group_rows[j])
+        group_out = Array(group_out)
+        m.d.comb += self.pop_rdata.eq(group_out[residue[host_row_r]])
+        for j, lane in enumerate(lanes):  # stage 3 -> 4: the lane's row from its group
+            got = Signal(ROW_BITS, name=f"lane{j}_row")
+            m.d.sync += got.eq(Mux(lane.data_en, group_out[residue[lane.data_row]], 0))
+            m.d.comb += lane.rd_data.eq(got)
 
         # -- results: score, score replicas, running best -------------------------------------------
         d = MAX_MOTION_DISTANCE_MM
@@ -526,122 +308,3 @@ class Learner(wiring.Component):
                         m.d.sync += [tau.eq(0), slot.eq(0), active.eq(1)]
                         m.next = "Run"
         return m
-
-
-# -- host side, for Amaranth's simulator -----------------------------------------------------------
-
-
-class LearnerSimHost:
-    """The host side of the learner's ports in Amaranth's simulator (testbench context ``ctx``)."""
-
-    def __init__(self, ctx, dut: Learner):
-        from hdl.evaluator_ehw import EvaluatorSimHost
-
-        self.ctx, self.dut = ctx, dut
-        self.model_host = EvaluatorSimHost(ctx, dut)  # the same model/state ports and ready
-        self.cycle = 0
-
-    async def tick(self):
-        await self.ctx.tick()
-        self.cycle += 1
-        self.model_host.cycle = self.cycle
-
-    async def wait_ready(self):
-        while not self.ctx.get(self.dut.ready):
-            await self.tick()
-
-    async def write_model(self, model):
-        await self.model_host.write_model(model)
-        self.cycle = self.model_host.cycle
-
-    async def observe(self, model, state, motion, next_state, crashed):
-        await self.model_host.observe(model, state, motion, next_state, crashed)
-        self.cycle = self.model_host.cycle
-
-    async def seed(self, seed: int):
-        self.ctx.set(self.dut.seed, int(seed))
-        self.ctx.set(self.dut.seed_we, 1)
-        await self.tick()
-        self.ctx.set(self.dut.seed_we, 0)
-
-    async def write_population(self, population):
-        ctx, dut = self.ctx, self.dut
-        for i, genome in enumerate(population):
-            for r, word in enumerate(genome):
-                ctx.set(dut.pop_index, i)
-                ctx.set(dut.pop_row, r)
-                ctx.set(dut.pop_data, int(word))
-                ctx.set(dut.pop_we, 1)
-                await self.tick()
-        ctx.set(dut.pop_we, 0)
-
-    async def read_genome(self, index: int) -> list[int]:
-        ctx, dut = self.ctx, self.dut
-        rows = []
-        for r in range(N_ROWS):  # the edge samples the address; the data is there after it
-            ctx.set(dut.pop_index, index)
-            ctx.set(dut.pop_row, r)
-            await self.tick()
-            rows.append(ctx.get(dut.pop_rdata))
-        return rows
-
-    async def learn(self, generations: int, reflex: bool = True, avoid=None):
-        """Run ``generations`` passes. Returns (download index, (crashes, loops, distance), score,
-        cycles register, clock edges from the start strobe to done); the download is the escape
-        child when ``avoid`` = (state, motion) is given and one exists, else the best."""
-        ctx, dut = self.ctx, self.dut
-        ctx.set(dut.reflex_en, int(reflex))
-        ctx.set(dut.avoid_en, int(avoid is not None))
-        if avoid is not None:
-            ctx.set(dut.avoid_state, int(avoid[0]))
-            ctx.set(dut.avoid_motion, int(avoid[1]))
-        ctx.set(dut.generations, generations)
-        ctx.set(dut.start, 1)
-        first = self.cycle
-        await self.tick()
-        ctx.set(dut.start, 0)
-        while not ctx.get(dut.done):
-            await self.tick()
-        kind = "escape" if avoid is not None and ctx.get(dut.escape_found) else "best"
-        get = lambda name: ctx.get(getattr(dut, f"{kind}_{name}"))  # noqa: E731
-        counts = (get("crashes"), get("loops"), get("distance"))
-        return get("index"), counts, get("score"), ctx.get(dut.cycles), self.cycle - first
-
-
-def simulate_learning(config: hg.HardwareGAConfig, seed: int, population, phases,
-                      read_population: bool = True, distance_rule: str = "covered"):
-    """Run a Learner in Amaranth's simulator: seed it, write ``population``, then for each
-    ``(observations, generations[, avoid])`` of ``phases`` apply the observations (a list of
-    (state, motion, next_state, crashed), host mirror ``ga.world_model.WorldModel``) and learn.
-    Returns one dict per phase: download index, counts, score, cycles, edges, population (if
-    read)."""
-    from amaranth.sim import Simulator
-
-    from ga.world_model import WorldModel
-
-    dut = Learner(config, distance_rule)
-    out = []
-
-    async def testbench(ctx):
-        host = LearnerSimHost(ctx, dut)
-        await host.wait_ready()
-        await host.seed(seed)
-        await host.write_population(population)
-        mirror = WorldModel()
-        for observations, generations, *avoid in phases:
-            for obs in observations:
-                await host.observe(mirror, *obs)
-            best, counts, score, cycles, edges = await host.learn(generations, avoid=avoid[0] if avoid else None)
-            record = {"best_index": best, "counts": counts, "score": score, "cycles": cycles,
-                      "edges": edges, "n_states": mirror.n_states}
-            if read_population:
-                record["population"] = [await host.read_genome(i) for i in range(config.population)]
-            else:
-                record["best"] = await host.read_genome(best)
-            out.append(record)
-
-    sim = Simulator(dut)
-    sim.add_clock(1e-8)
-    sim.add_testbench(testbench)
-    sim.run()
-    return out

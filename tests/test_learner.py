@@ -75,7 +75,7 @@ def _with_escape(config, seed, population, phases):
 
 @pytest.mark.parametrize("case", range(len(CASES)))
 def test_amaranth_learner_equals_reference(case):
-    from hdl.learner import simulate_learning
+    from hdl.learner_sim import simulate_learning
 
     config, seed, obs, cuts = CASES[case]
     population = random_population(np.random.default_rng(case), config.population)
@@ -126,3 +126,23 @@ def test_cocotb_learner_verilog_equals_reference(tmp_path):
     n_tests, _ = run_cocotb(sources=[src], toplevel="learner", test_module="tb_learner", test_dir=TB_DIR,
                             build_name="learner", extra_env={"EHW_LEARNER_CASE": str(case_file)})
     assert n_tests == 1
+
+
+@pytest.mark.parametrize("tournament", [1, 2, 3, 20])
+def test_bank_groups_serve_one_lane_a_cycle(tournament):
+    """hdl.learner.bank_groups: in every cycle of a pass, for every slot length C the model can
+    give, the rows the lanes ask (and write, the same pattern ROW_LATENCY cycles later) are in
+    distinct groups (rows k, k + M, ... in group k)."""
+    from ga.genome import N_ROWS
+    from hdl.learner import bank_groups
+
+    row_start = 2 * tournament + 1
+    for lanes in range(1, 49):
+        groups = bank_groups(hg.HardwareGAConfig(population=100, tournament=tournament, lanes=lanes))
+        assert lanes <= groups <= N_ROWS
+        # C from the shortest slot to 98 cycles past it: beyond, no two slots draw rows in one cycle
+        for c in range(hg.slot_cycles(0, tournament), hg.slot_cycles(0, tournament) + N_ROWS + 48):
+            for t in range(lanes, lanes + c):  # lane j sees the slot counter j cycles late
+                rows = [(t - j) % c - row_start for j in range(lanes)]
+                asked = [r % groups for r in rows if 0 <= r < N_ROWS]
+                assert len(set(asked)) == len(asked), (lanes, c, t)
