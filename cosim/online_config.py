@@ -16,9 +16,9 @@ from cosim.failures import Cycles, LegTimeout, NoProgress, Reentries, Repeats
 from ga.evolution import GAConfig
 from ga.motions import DISTANCE_RULES
 
-# The command-line option of each OnlineConfig field (cosim.online_cli), named in error messages.
-LOOP_BLAMES = ("cycle", "leg")  # OnlineConfig.loop_blame
+LOOP_BLAMES = ("cycle", "leg")  # OnlineConfig.loop_blame (docs/online.md, round 8)
 
+# The command-line option of each OnlineConfig field (cosim.online_cli), named in error messages.
 OPTIONS = {"n_targets": "--targets", "distance_rule": "--distance"}
 
 

@@ -16,7 +16,11 @@ the defaults' behaviour):
   failure, no escape, no interaction; the robot goes on with the downloaded controller;
 - ``every`` = K: a learning phase also after K steps of an execution phase without failure;
 - ``keep`` = 1: after such a phase (``at_target``, ``every``), the running controller stays unless
-  the new best is strictly fitter than it on the same model (the board evaluates it once more).
+  the new best is strictly fitter than it on the same model (the board evaluates it once more);
+- ``blame``: the (state, motion) a cycle stop is blamed on (the escape avoids it): ``leg`` (this
+  script's default: rounds 1-7's rule, the leg's most frequent obstacle pair), ``cycle_now`` (the
+  cycle's first obstacle pair from the robot's state on: the main code's default ``loop_blame``
+  "cycle" since this round), ``cycle_freq`` (the cycle's obstacle pair most frequent in the leg).
 
 The learning phases that no failure started get the reasons ``target`` and ``periodic`` in the
 phase records; the board and its counts are untouched.
