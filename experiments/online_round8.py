@@ -43,7 +43,7 @@ from cosim.failures import Cycles, blame  # noqa: E402
 from cosim.online import OnlineConfig, make_run  # noqa: E402
 from experiments.online_round6 import cell, lost, seeds_of  # noqa: E402
 from experiments.online_round7 import DEFAULT_PARAMS as R7_PARAMS  # noqa: E402
-from experiments.online_round7 import VARIANTS, AdaptiveCycles, Round7  # noqa: E402
+from experiments.online_round7 import VARIANTS, AdaptiveCycles, Round7, parse_kv  # noqa: E402
 from ga.evaluator import fitness as model_fitness  # noqa: E402
 from ga.motions import OBSTACLE_MASK  # noqa: E402
 
@@ -141,20 +141,8 @@ class Round8(Round7):
 def detected_cycle(track, radius_mm: float) -> list:
     """The (state, motion) pairs of the cycle ``cosim.failures.Cycles`` (one round) finds, in
     order from the current state; [] if none."""
-    w, now = track.pairs, track.state
-    for p in range(2, 9):
-        if p > len(w) or p > track.since_closer:
-            break
-        if w[-p][0] != now:
-            continue
-        cycle = [w[i] for i in range(-p, 0)]
-        states = [s for s, _ in cycle]
-        if len(set(states)) < p or not any(s & OBSTACLE_MASK for s in states):
-            continue
-        if radius_mm and track.moved(max(-p - 1, -len(track.places))) > radius_mm:
-            continue
-        return cycle
-    return []
+    probe = Cycles(1, radius_mm)
+    return probe.cycle if probe.observe(track) else []
 
 
 def run_one(variant: str, seed: int, budget: int, settings: dict, params: dict) -> dict:
@@ -227,10 +215,6 @@ def table(path: Path) -> str:
         cpu = f"{min(r['cpu_s'] for r in rs):.0f}-{max(r['cpu_s'] for r in rs):.0f}"
         out.append(f"| {key} | {cells} | {median} | {fails} | {cpu} |")
     return "\n".join(out)
-
-
-def parse_kv(items) -> dict:
-    return {k: json.loads(v) for k, _, v in (kv.partition("=") for kv in items)}
 
 
 def main(argv=None) -> int:
