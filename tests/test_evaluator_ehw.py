@@ -271,6 +271,24 @@ def test_every_port_entry_survives_the_nine_bit_word():
     assert len({tuple(e) for e in expected}) > 2  # the cases differ: loop, crash, unknown
 
 
+def test_world_model_ram_is_one_ecp5_block_ram(tmp_path):
+    """Yosys's ECP5 memory mapping puts the learner lane's evaluator's world-model RAM into one
+    DP16KD (2048 x 9: the trace loop closes on one block; the 10 bits of {next, crash, valid}
+    took two, docs/learner.md "Resources and clock"). Through map_ram only: seconds, not minutes."""
+    from amaranth.back import rtlil
+
+    from formal.yosys import INSTALL_HINT, available, run_script
+
+    if not available():
+        pytest.skip(f"formal extra not installed: {INSTALL_HINT}")
+    dut = EvaluatorEHW(double_buffer=True, lookahead=True)  # as hdl.learner_lane.Lane has it
+    (tmp_path / "top.il").write_text(rtlil.convert(dut, name="top", emit_src=False))
+    run = run_script("read_rtlil top.il\nsynth_ecp5 -top top -run :map_ffram\n"
+                     "select -assert-count 1 t:DP16KD\nselect -assert-count 1 t:DP16KD r:DATA_WIDTH_B=9\n",
+                     tmp_path)
+    assert run.returncode == 0, run.tail()
+
+
 def test_constructor_and_ports():
     with pytest.raises(ValueError, match="0"):
         EvaluatorEHW(k=0)
