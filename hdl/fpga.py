@@ -88,7 +88,7 @@ def _system_top(clk_freq_hz: float):
 
 # The learning engine's lanes in the ulx3s-learner bitstream (docs/learner.md, "Resources and
 # clock": the lanes that fit 80 % of the LFE5U-85F's LUTs, and the build time they cost).
-LEARNER_LANES = 8
+LEARNER_LANES = 7
 
 
 def learner_config(lanes: int = LEARNER_LANES):
