@@ -31,7 +31,7 @@ module evaluator_props #(
     input wire         clear,
     input wire         reflex_en,
     input wire         start,
-    input wire [9:0]   ram_data     // the RAM's read data (RAM abstraction, see above)
+    input wire [`ENTRY_BITS-1:0] ram_data  // the RAM's read data (RAM abstraction, see above)
 );
     localparam W = 19;
     localparam RAM_DEPTH = 2048;
@@ -51,7 +51,11 @@ module evaluator_props #(
     (* keep *) wire           probe_tracing;
     (* keep *) wire           probe_wr_en;
     (* keep *) wire [10:0]    probe_wr_addr;
-    (* keep *) wire [9:0]     probe_wr_data;
+    (* keep *) wire [`ENTRY_BITS-1:0] probe_wr_data;
+
+    // The RAM word of the model port's entry (hdl.ports.ModelEntry, macros from formal/ports.py):
+    // it moves when valid and not a crash; otherwise its next field codes crash or unknown.
+    wire entry_moves = model_valid && !model_crash;
 
     wire idle     = probe_fsm == `FSM_IDLE;
     wire in_boot  = probe_fsm == `FSM_BOOT;
@@ -67,8 +71,8 @@ module evaluator_props #(
 
     // -- assumption: the world-model invariant on the entries the trace engine reads ----------
     always @* begin
-        if (probe_tracing && ram_data[9] && !ram_data[8])  // valid, no crash
-            assume (probe_in_set[ram_data[7:0]]);
+        if (probe_tracing && ram_data[`ENTRY_MOVES])  // valid, no crash
+            assume (probe_in_set[ram_data[`ENTRY_NEXT]]);
     end
 
     // -- ghost state: last cycle's values, counters since reset and since start ----------------
@@ -144,7 +148,7 @@ module evaluator_props #(
                         && cycles == cycles_q);
 
             // (4) model writes and state additions only when ready: a RAM write is the host's
-            //     (exactly the entry on the model port) while ready, the Clear sweep's zero
+            //     (exactly the entry on the model port, coded) while ready, the Clear sweep's zero
             //     otherwise; S and |S| change only by an addition or a clear accepted when ready.
             if (!(idle_q && (state_we_q || clear_q)))
                 assert (probe_in_set == in_set_q && n_states == n_states_q);
@@ -156,8 +160,10 @@ module evaluator_props #(
         end
         if (probe_wr_en)
             assert (idle ? (probe_wr_addr == {model_state, model_motion}
-                            && probe_wr_data == {model_valid, model_crash, model_next})
-                         : (in_clear && probe_wr_data == 10'b0 && probe_wr_addr == probe_clear_addr));
+                            && probe_wr_data[`ENTRY_MOVES] == entry_moves
+                            && probe_wr_data[`ENTRY_NEXT] == (entry_moves ? model_next :
+                                                              model_valid ? `ENTRY_CRASH : `ENTRY_UNKNOWN))
+                         : (in_clear && probe_wr_data == 0 && probe_wr_addr == probe_clear_addr));
         if (idle && model_we)
             assert (probe_wr_en);
 

@@ -115,6 +115,23 @@ def fsm_macros(encoding: dict[str, int]) -> str:
     return "".join(f"`define FSM_{name.upper()} {code}\n" for name, code in encoding.items())
 
 
+def entry_macros() -> str:
+    """Verilog ``define``s of the world-model RAM word (``hdl.ports.ModelEntry``): its width
+    ``ENTRY_BITS``, the bit ``ENTRY_MOVES``, the field ``ENTRY_NEXT`` (a part-select range) and the
+    codes ``ENTRY_UNKNOWN`` and ``ENTRY_CRASH`` of ``next`` in a word that does not move."""
+    from amaranth.lib import data
+
+    from hdl.ports import ModelEntry
+
+    layout = data.Layout.cast(ModelEntry)
+    moves, nxt = layout["moves"], layout["next"]
+    return (f"`define ENTRY_BITS {layout.size}\n"
+            f"`define ENTRY_MOVES {moves.offset}\n"
+            f"`define ENTRY_NEXT {nxt.offset + nxt.width - 1}:{nxt.offset}\n"
+            f"`define ENTRY_UNKNOWN {ModelEntry.UNKNOWN}\n"
+            f"`define ENTRY_CRASH {ModelEntry.CRASH}\n")
+
+
 def probe_commands(probes: dict[str, str], instance: str = "dut") -> list[str]:
     """Yosys commands (after ``flatten``) that drive each harness probe from the DUT's register."""
     # -nounset: the probe wire is undriven, but proc may have made other wires its aliases; a

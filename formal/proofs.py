@@ -174,7 +174,7 @@ def _evaluator_build(k: int, count_depth: int | None = None):
             verilog.convert(dut, name="evaluator_ehw", emit_src=False))
         encoding = ports.fsm_encoding(EvaluatorEHW(k=k))
         (workdir / "dut.vh").write_text(ports.port_macro(ports.EVALUATOR_PORTS)
-                                        + ports.fsm_macros(encoding))
+                                        + ports.fsm_macros(encoding) + ports.entry_macros())
         ram_read, harness_input = ports.EVALUATOR_RAM_READ
         if count_depth is None:
             solve = ("sat -tempinduct -prove-asserts -set-assumes -set-at 1 rst 1 -seq 1 "
@@ -215,8 +215,8 @@ EVALUATOR_ASSUMPTIONS = (
     "rst is high in the first cycle (the base case); every input is free in every later cycle",
     "RAM abstraction: the world-model RAM is removed; the entry the trace engine reads is any "
     "value in every cycle, subject to the next assumption",
-    "world-model invariant (ga.world_model: observe() adds both states to S): a valid, "
-    "non-crash entry read while tracing has its next state in S",
+    "world-model invariant (ga.world_model: observe() adds both states to S): an entry that "
+    "moves (valid, no crash) read while tracing has its next state in S",
     "the harness reads the DUT's FSM state (codes from Amaranth's FSM), S, the tested set, the "
     "cycle accumulator, the active configuration, the Clear address and the RAM write port by "
     "name (formal/ports.py)",

@@ -5,9 +5,9 @@ controller, bit-exact with ``ga.evaluator``, at one trace step (one tested state
 
 Datapath
 --------
-- ``ram``: 2^(8+3) = 2048 entries {next: 8, crash: 1, valid: 1}, address ``state * 8 + motion``
-  (``Cat(motion, state)``). One synchronous write port (the host, or the Clear sweep) and one
-  synchronous read port (the trace engine).
+- ``ram``: 2^(8+3) = 2048 entries of 9 bits (``hdl.ports.ModelEntry``, one 2048 x 9 block RAM),
+  address ``state * 8 + motion`` (``Cat(motion, state)``). One synchronous write port (the host,
+  or the Clear sweep) and one synchronous read port (the trace engine).
 - ``in_set``: the state set S as a 256-bit register (the host adds states; ``n_states`` counts).
 - ``tested``, ``trace``: 256-bit registers, the sets of the pseudo-code. ``tested`` is cleared at
   start, ``trace`` is reloaded with a one-hot at each new trace.
@@ -73,13 +73,14 @@ from ga.genome import N_ROWS, ROW_BITS
 from ga.motions import (DEFAULT_DISTANCE_RULE, MAX_MOTION_DISTANCE_MM, N_INPUTS, N_MOTIONS, N_OUTPUTS,
                         N_STATES, OBSTACLE_MASK, REFLEX_MOTION, SECTOR_SHIFT, motion_distances)
 from hdl.and_or_array import AndOrArray, _check_positive
-from hdl.ports import (COUNT_BITS, DISTANCE_BITS, ENTRY_LAYOUT, AmaranthPins, ModelWriteSignature,
+from hdl.ports import (COUNT_BITS, DISTANCE_BITS, AmaranthPins, ModelEntry, ModelWriteSignature,
                        RowWriteSignature, write_rows)
 from ga.world_model import WorldModel
 
 RAM_DEPTH = N_STATES * N_MOTIONS  # 2^(n+3)
 CYCLE_BITS = 16
 assert N_STATES * MAX_MOTION_DISTANCE_MM < 1 << DISTANCE_BITS
+assert ModelEntry.UNKNOWN == 0  # the Clear sweep writes the all-zero word
 
 
 WORD = 32  # the word of the state-set helpers below: one machine word in a simulator
@@ -206,7 +207,7 @@ class EvaluatorEHW(wiring.Component):
         m = Module()
         k, W = self.k, self.row_bits
         array = m.submodules.array = AndOrArray(n=N_INPUTS, m=N_OUTPUTS, k=k)
-        ram = m.submodules.ram = Memory(shape=ENTRY_LAYOUT, depth=RAM_DEPTH, init=[])
+        ram = m.submodules.ram = Memory(shape=ModelEntry, depth=RAM_DEPTH, init=[])
         wr = ram.write_port()
         rd = ram.read_port()  # synchronous: rd.data is the entry at last cycle's rd.addr
 
@@ -247,7 +248,8 @@ class EvaluatorEHW(wiring.Component):
         entry = rd.data
         s2 = entry.next
         free_self = (s2 == cur) & ((cur & OBSTACLE_MASK) == 0)
-        moves = tracing & entry.valid & ~entry.crash  # the pseudo-code gets past (i) and (ii)
+        moves = tracing & entry.moves  # the pseudo-code gets past (i) and (ii)
+        crashed = tracing & entry.crashed()  # (ii)
         goes_on = moves & ~free_self
         in_trace = _bit_of(m, trace, s2, "in_trace")
         in_tested = _bit_of(m, tested, s2, "in_tested")
@@ -292,9 +294,7 @@ class EvaluatorEHW(wiring.Component):
         host_write = self.model.we & self.ready
         m.d.comb += [
             wr.addr.eq(Cat(self.model.motion, self.model.state)),
-            wr.data.next.eq(self.model.next),
-            wr.data.crash.eq(self.model.crash),
-            wr.data.valid.eq(self.model.valid),
+            *wr.data.store(self.model.next, self.model.crash, self.model.valid),
             wr.en.eq(host_write),
         ]
 
@@ -311,7 +311,7 @@ class EvaluatorEHW(wiring.Component):
 
         def finish():
             m.d.sync += [
-                self.crashes.eq(acc_crashes + (tracing & entry.valid & entry.crash)),
+                self.crashes.eq(acc_crashes + crashed),
                 self.loops.eq(acc_loops + loop_hit),
                 self.distance.eq(acc_distance + Mux(moves, step_distance, 0)),
                 self.cycles.eq(acc_cycles + 1),
@@ -360,7 +360,7 @@ class EvaluatorEHW(wiring.Component):
             with m.State("Trace"):
                 m.d.comb += [self.busy.eq(1), tracing.eq(1)]
                 m.d.sync += [
-                    acc_crashes.eq(acc_crashes + (entry.valid & entry.crash)),
+                    acc_crashes.eq(acc_crashes + crashed),
                     acc_loops.eq(acc_loops + loop_hit),
                     acc_distance.eq(acc_distance + Mux(moves, step_distance, 0)),
                     acc_cycles.eq(acc_cycles + 1),
@@ -375,7 +375,7 @@ class EvaluatorEHW(wiring.Component):
                 m.d.comb += [
                     self.busy.eq(1),
                     wr.addr.eq(clear_addr),
-                    wr.data.eq(0),
+                    wr.data.eq(0),  # every bit 0: ModelEntry.UNKNOWN, not moving
                     wr.en.eq(1),
                 ]
                 m.d.sync += clear_addr.eq(clear_addr + 1)

@@ -11,7 +11,8 @@ used on both sides):
   Verilog a port ``row`` of it is ``row__addr``, ``row__data``, ``row__we``.
 - ``ModelWriteSignature()``: the evaluator's world-model write port (entry (``state``,
   ``motion``) := {``next``, ``crash``, ``valid``} when ``we``).
-- ``ENTRY_LAYOUT``: one world-model RAM entry; ``RESULT_LAYOUT``: the evaluator's result word
+- ``ModelEntry``: one world-model RAM word (9 bits: the port's {next, crash, valid} coded so that
+  the 2048 entries fit one 2048 x 9 block RAM); ``RESULT_LAYOUT``: the evaluator's result word
   (crashes, loops, distance), packed by the system top's results RAM and unpacked by the host
   with ``unpack_result``.
 
@@ -22,8 +23,10 @@ the registered outputs show that edge's result), with names as in the generated 
 cocotb DUT; ``write_rows`` is the one row-write driver every testbench and host uses.
 """
 
-from __future__ import annotations
+# (No ``from __future__ import annotations``: ``data.Struct`` reads its fields from the values of
+# its annotations, and skips string ones silently.)
 
+from amaranth.hdl import Mux
 from amaranth.lib import data, wiring
 from amaranth.lib.wiring import Out
 
@@ -33,8 +36,35 @@ from ga.motions import N_INPUTS, N_OUTPUTS, N_STATES
 COUNT_BITS = N_STATES.bit_length()  # 9: counts 0..256 (states, crashes, loops)
 DISTANCE_BITS = 16
 
-# One world-model RAM entry (SPEC section 8). valid = 0: the transition is unknown.
-ENTRY_LAYOUT = data.StructLayout({"next": N_INPUTS, "crash": 1, "valid": 1})
+
+class ModelEntry(data.Struct):
+    """One world-model RAM word (SPEC section 8), 9 bits: the 2048 entries fit one 2048 x 9
+    block RAM (an ECP5 DP16KD), so the evaluator's trace loop closes on one block with no output
+    multiplexer (docs/learner.md, "Resources and clock").
+
+    The port's entry {next, crash, valid} (``ModelWriteSignature``) is coded as ``moves`` =
+    valid and not crash (the trace follows ``next``) and, when it does not move, ``next`` (which
+    the trace never reads then) says why: ``UNKNOWN`` (0, so the all-zero word the Clear sweep
+    writes is an unknown entry) or ``CRASH``. Written by :meth:`store`, read by ``moves``,
+    ``next`` and :meth:`crashed`: the only places that know the coding.
+    """
+
+    next: N_INPUTS
+    moves: 1
+
+    UNKNOWN = 0  # next of a word that does not move: the transition is unknown
+    CRASH = 1  # next of a word that does not move: the motion crashed
+
+    def store(self, next_state, crash, valid):
+        """The statements that set this word to the port's entry {next, crash, valid}."""
+        moves = valid & ~crash
+        return [self.moves.eq(moves),
+                self.next.eq(Mux(moves, next_state, Mux(valid, self.CRASH, self.UNKNOWN)))]
+
+    def crashed(self):
+        """The entry records a crash (valid and crash at the port)."""
+        return ~self.moves & (self.next == self.CRASH)
+
 
 # The evaluator's result word: what one evaluation returns to the host (SPEC section 7: the
 # hardware returns crashes, loops and distance; the host turns them into the fitness).

@@ -20,7 +20,7 @@ from ga.evaluator import evaluate_population
 from ga.world_model import WorldModel
 from hdl.evaluator_ehw import RAM_DEPTH, EvaluatorEHW, EvaluatorSimHost as SimHost
 from ga.genome import N_ROWS
-from hdl.ports import ModelWriteSignature, RowWriteSignature, write_rows
+from hdl.ports import ModelEntry, ModelWriteSignature, RowWriteSignature, write_rows
 from test_evaluator_cases import cases, constant_rows, random_model, specific_rows
 
 TB_DIR = Path(__file__).resolve().parent / "cocotb_tb"
@@ -235,6 +235,58 @@ def test_clear_sweeps_the_model():
         assert (await host.evaluate(rows, reflex=False))[0] == (0, 0, 0)
 
     run_sim(body)
+
+
+def test_every_port_entry_survives_the_nine_bit_word():
+    """The RAM word (``hdl.ports.ModelEntry``: 9 bits, so the 2048 entries fit one 2048 x 9 block
+    RAM) keeps what the port's {next, crash, valid} says: each of the four (crash, valid), written
+    in place over the previous one, with next states equal to the coding's own values (UNKNOWN,
+    CRASH) or not, counts as the reference's model of that entry (a crash entry's next, which the
+    word drops, is not the reference's either: never read)."""
+    assert Shape.cast(ModelEntry).width == 9
+    s, rows = 40, constant_rows(3)  # every state takes motion 3
+    for t in (ModelEntry.UNKNOWN, ModelEntry.CRASH, 200):
+        expected = []
+        for crash, valid in ((0, 1), (1, 1), (1, 0), (0, 1), (0, 0)):
+            model = WorldModel()
+            for a in range(8):
+                model.observe(t, a, s, False)  # t goes back to s: a loop when s goes to t
+                if valid:
+                    model.observe(s, a, t, bool(crash))
+            expected.append(reference_counts(rows[None, :], model, reflex=False)[0])
+
+        async def body(host, t=t):
+            for state in (s, t):
+                await host.add_state(state)
+            for a in range(8):
+                await host.write_entry(t, a, s, 0)
+            got = []
+            for crash, valid in ((0, 1), (1, 1), (1, 0), (0, 1), (0, 0)):
+                for a in range(8):
+                    await host.write_entry(s, a, t, crash, valid)
+                got.append((await host.evaluate(rows, reflex=False))[0])
+            assert got == expected
+
+        run_sim(body)
+    assert len({tuple(e) for e in expected}) > 2  # the cases differ: loop, crash, unknown
+
+
+def test_world_model_ram_is_one_ecp5_block_ram(tmp_path):
+    """Yosys's ECP5 memory mapping puts the learner lane's evaluator's world-model RAM into one
+    DP16KD (2048 x 9: the trace loop closes on one block; the 10 bits of {next, crash, valid}
+    took two, docs/learner.md "Resources and clock"). Through map_ram only: seconds, not minutes."""
+    from amaranth.back import rtlil
+
+    from formal.yosys import INSTALL_HINT, available, run_script
+
+    if not available():
+        pytest.skip(f"formal extra not installed: {INSTALL_HINT}")
+    dut = EvaluatorEHW(double_buffer=True, lookahead=True)  # as hdl.learner_lane.Lane has it
+    (tmp_path / "top.il").write_text(rtlil.convert(dut, name="top", emit_src=False))
+    run = run_script("read_rtlil top.il\nsynth_ecp5 -top top -run :map_ffram\n"
+                     "select -assert-count 1 t:DP16KD\nselect -assert-count 1 t:DP16KD r:DATA_WIDTH_B=9\n",
+                     tmp_path)
+    assert run.returncode == 0, run.tail()
 
 
 def test_constructor_and_ports():
