@@ -189,14 +189,16 @@ def test_online_blame_check_counts_where_cycle_stops_are_blamed(capsys):
 
 def test_online_round9_runs_each_rule_and_its_default_is_the_default_lifetime(tmp_path, capsys):
     """Round 9's harness: ``default`` is the lifetime of today's defaults (``loop_blame`` "cycle");
-    ``two_if`` and ``likely`` run a smoke lifetime, and the baseline is scored in every phase."""
+    ``two_if``, ``likely`` and ``crashvote`` run a smoke lifetime, and the baseline is scored in
+    every phase."""
     round9 = _script("online_round9")
     out = tmp_path / "r9.jsonl"
-    for argv in (["default"], ["default", "--param", "two_if=\"surprise\""], ["likely"]):
+    for argv in (["default"], ["default", "--param", "two_if=\"surprise\""], ["likely"], ["crashvote"]):
         assert round9.main([argv[0], "1", "--budget", "150", "--out", str(out), *argv[1:]]) == 0
     runs = [json.loads(line) for line in out.read_text().splitlines()]
-    assert len(runs) == 3 and all(r["interactions"] in (150, 151) for r in runs)
+    assert len(runs) == 4 and all(r["interactions"] in (150, 151) for r in runs)
     assert all(r["baseline"]["phases"] == r["phases"] for r in runs)
+    assert all(r["crash_entries"]["crash_entries"] >= r["crash_entries"]["crash_entries_safe_half"] for r in runs)
     from cosim.online import OnlineConfig, make_run
 
     plain = make_run(OnlineConfig(seed=1, max_interactions=150)).run()
