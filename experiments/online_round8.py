@@ -225,7 +225,7 @@ def table(path: Path) -> str:
 
 
 def main(argv=None, cls=None, defaults: dict | None = None, variants=VARIANTS, default_out: Path = DEFAULT_OUT,
-         description: str = __doc__) -> int:
+         description: str = __doc__, table_of=None) -> int:
     """The command line (a later round passes its subclass, parameters, variants and output)."""
     defaults = defaults or DEFAULT_PARAMS
     p = argparse.ArgumentParser(description=description.splitlines()[0])
@@ -239,7 +239,7 @@ def main(argv=None, cls=None, defaults: dict | None = None, variants=VARIANTS, d
     p.add_argument("--table", type=Path)
     a = p.parse_args(argv)
     if a.table:
-        print(table(a.table))
+        print((table_of or table)(a.table))
         return 0
     if not a.variant or not a.seeds:
         p.error("VARIANT and SEEDS are needed (or --table)")

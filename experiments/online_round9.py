@@ -39,6 +39,7 @@ motion in their states.
 
 from __future__ import annotations
 
+import json
 import sys
 from collections import Counter
 from pathlib import Path
@@ -51,7 +52,8 @@ from cosim.failures import Cycles  # noqa: E402
 from experiments.online_round7 import AdaptiveCycles  # noqa: E402
 from experiments.online_round7 import VARIANTS as R7_VARIANTS  # noqa: E402
 from experiments.online_round8 import DEFAULT_PARAMS as R8_PARAMS  # noqa: E402
-from experiments.online_round8 import Round8, detected_cycle  # noqa: E402
+from experiments.online_round6 import cell  # noqa: E402
+from experiments.online_round8 import Round8, detected_cycle, key_of  # noqa: E402
 from experiments.online_round8 import main as round8_main  # noqa: E402
 from ga.evaluator import evaluate_tables, fitness as spec_fitness  # noqa: E402
 from ga.motions import N_MOTIONS, N_STATES, OBSTACLE_MASK  # noqa: E402
@@ -183,10 +185,41 @@ class Round9(Round8):
                 "crash_entries": entries}
 
 
+def table(path: Path) -> str:
+    """The screening table: per seed, the median, and against the ``default`` row (no setting, no
+    parameter: today's defaults) on the seeds both ran: how many lifetimes were shorter and the
+    geometric mean of the per-seed ratios (a run out of budget counts as the budget)."""
+    rows: dict[str, dict[int, dict]] = {}
+    for line in path.read_text().splitlines():
+        r = json.loads(line)
+        rows.setdefault(key_of(r), {})[r["seed"]] = r
+
+    def value(r):
+        return r["interactions"] if r["targets"] >= 64 else r["budget"]
+
+    ref = rows.get("default", {})
+    out = ["| variant | per seed (seed: interactions to 64, or targets @ budget) | median | against the defaults: shorter, ratio | failures | CPU-s |",
+           "|---|---|---|---|---|---|"]
+    for key, by_seed in rows.items():
+        rs = [by_seed[s] for s in sorted(by_seed)]
+        cells = ", ".join(f"{r['seed']}: {cell(r)}" for r in rs)
+        med = f"{float(np.median([value(r) for r in rs])):,.0f}"
+        both = [s for s in by_seed if s in ref]
+        if key == "default" or not both:
+            versus = ""
+        else:
+            ratios = [value(by_seed[s]) / value(ref[s]) for s in both]
+            versus = (f"{sum(x < 1 for x in ratios)} of {len(both)}, "
+                      f"{float(np.exp(np.mean(np.log(ratios)))):.2f}")
+        fails = ", ".join(str(r["failures"]) for r in rs)
+        cpu = f"{min(r['cpu_s'] for r in rs):.0f}-{max(r['cpu_s'] for r in rs):.0f}"
+        out.append(f"| {key} | {cells} | {med} | {versus} | {fails} | {cpu} |")
+    return "\n".join(out)
+
+
 def main(argv=None) -> int:
-    params = dict(DEFAULT_PARAMS)
-    return round8_main(argv, cls=Round9, defaults=params, variants=VARIANTS, default_out=DEFAULT_OUT,
-                       description=__doc__)
+    return round8_main(argv, cls=Round9, defaults=DEFAULT_PARAMS, variants=VARIANTS, default_out=DEFAULT_OUT,
+                       description=__doc__, table_of=table)
 
 
 if __name__ == "__main__":
