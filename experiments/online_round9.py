@@ -62,7 +62,7 @@ from sim_world.baseline import baseline_table  # noqa: E402
 
 DEFAULT_OUT = Path("build/experiments/round9.jsonl")
 VARIANTS = (*R7_VARIANTS, "likely", "crashvote")
-R9_PARAMS = {"blame": "cycle_now", "two_if": "", "w_likely": 0.4, "safe_share": 0.5}
+R9_PARAMS = {"blame": "cycle_now", "two_if": "", "w_likely": 0.4, "safe_share": 0.8}
 DEFAULT_PARAMS = {**R8_PARAMS, **R9_PARAMS}
 TWO_IF = ("", "surprise")
 
@@ -93,7 +93,7 @@ class Round9(Round8):
         super().__init__(*a, **k)
         self.base_table = baseline_table()
         self.base_log: Counter = Counter()
-        self.loop_motions: Counter = Counter()  # (the controller's motion, the baseline's) in cycles
+        self.loop_motions: Counter = Counter()  # cycle-stop obstacle pairs: "same" motion as the baseline or "other"
         if self.params["two_if"] not in TWO_IF:
             raise ValueError(f"--param two_if must be one of {TWO_IF!r}, got {self.params['two_if']!r}")
         if self.params["two_if"] == "surprise":
