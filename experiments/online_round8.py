@@ -66,6 +66,10 @@ class Round8(Round7):
             self.detectors = [AdaptiveCycles(lambda: self.loops_this_leg() >= first2, self.config.loop_radius_mm)
                               if isinstance(d, Cycles) else d for d in self.detectors]
 
+    def extra_figures(self) -> dict:
+        """More figures for the JSON line (a later round's instrumentation)."""
+        return {}
+
     def loops_this_leg(self) -> int:
         return self.leg_loops if self.leg_of_loops == self.targets else 0
 
@@ -145,11 +149,14 @@ def detected_cycle(track, radius_mm: float) -> list:
     return probe.cycle if probe.observe(track) else []
 
 
-def run_one(variant: str, seed: int, budget: int, settings: dict, params: dict) -> dict:
+def run_one(variant: str, seed: int, budget: int, settings: dict, params: dict, cls=None,
+            defaults: dict | None = None) -> dict:
+    """One lifetime of ``cls`` (Round8, or a later round's subclass with its ``defaults``)."""
+    cls, defaults = cls or Round8, defaults or DEFAULT_PARAMS
     config = OnlineConfig(seed=seed, max_interactions=budget, **settings)
     base = make_run(config)
-    Round8.variant, Round8.params = variant, {**DEFAULT_PARAMS, **params}
-    run = Round8(config, base.controller, base.evaluator)
+    cls.variant, cls.params = variant, {**defaults, **params}
+    run = cls(config, base.controller, base.evaluator)
     t0, c0 = time.perf_counter(), time.process_time()
     run.run()
     s = run.summary()
@@ -167,7 +174,7 @@ def run_one(variant: str, seed: int, budget: int, settings: dict, params: dict) 
             "legs": legs(run.target_log, run.interactions),
             "leg_failures": leg_failures(failures, len(run.target_log)),
             "steps": dict(classes), "failure_classes": dict(run.failure_classes),
-            "download_trace": dict(run.download_trace),
+            "download_trace": dict(run.download_trace), **run.extra_figures(),
             "wall_s": round(time.perf_counter() - t0, 1), "cpu_s": round(time.process_time() - c0, 1)}
 
 
@@ -217,27 +224,30 @@ def table(path: Path) -> str:
     return "\n".join(out)
 
 
-def main(argv=None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("variant", nargs="?", choices=VARIANTS)
+def main(argv=None, cls=None, defaults: dict | None = None, variants=VARIANTS, default_out: Path = DEFAULT_OUT,
+         description: str = __doc__, table_of=None) -> int:
+    """The command line (a later round passes its subclass, parameters, variants and output)."""
+    defaults = defaults or DEFAULT_PARAMS
+    p = argparse.ArgumentParser(description=description.splitlines()[0])
+    p.add_argument("variant", nargs="?", choices=variants)
     p.add_argument("seeds", nargs="?")
     p.add_argument("--budget", type=int, default=20_000)
     p.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="an OnlineConfig field")
     p.add_argument("--param", action="append", default=[], metavar="KEY=VALUE",
-                   help=f"a parameter ({', '.join(DEFAULT_PARAMS)})")
-    p.add_argument("--out", type=Path, default=DEFAULT_OUT)
+                   help=f"a parameter ({', '.join(defaults)})")
+    p.add_argument("--out", type=Path, default=default_out)
     p.add_argument("--table", type=Path)
     a = p.parse_args(argv)
     if a.table:
-        print(table(a.table))
+        print((table_of or table)(a.table))
         return 0
     if not a.variant or not a.seeds:
         p.error("VARIANT and SEEDS are needed (or --table)")
     settings, params = parse_kv(a.set), parse_kv(a.param)
-    unknown = set(params) - set(DEFAULT_PARAMS)
+    unknown = set(params) - set(defaults)
     if unknown:
         p.error(f"unknown --param {sorted(unknown)[0]!r}")
-    if params.get("blame", "leg") not in BLAMES:
+    if params.get("blame", defaults["blame"]) not in BLAMES:
         p.error(f"--param blame must be one of {', '.join(BLAMES)}")
     a.out.parent.mkdir(parents=True, exist_ok=True)
     done = set()
@@ -249,7 +259,7 @@ def main(argv=None) -> int:
         probe = {"variant": a.variant, "settings": settings, "params": params}
         if (key_of(probe), seed, a.budget) in done:
             continue
-        r = run_one(a.variant, seed, a.budget, settings, params)
+        r = run_one(a.variant, seed, a.budget, settings, params, cls, defaults)
         with a.out.open("a") as f:
             f.write(json.dumps(r) + "\n")
         print(json.dumps(r), flush=True)

@@ -5,8 +5,7 @@ controller, bit-exact with ``ga.evaluator``, at one trace step (one tested state
 
 Datapath
 --------
-- ``ram``: 2^(8+3) = 2048 entries of 9 bits (``hdl.ports.ModelEntry``: {next: 8, moves: 1},
-  crash and unknown coded in ``next`` when the entry does not move; one 2048 x 9 block RAM),
+- ``ram``: 2^(8+3) = 2048 entries of 9 bits (``hdl.ports.ModelEntry``, one 2048 x 9 block RAM),
   address ``state * 8 + motion`` (``Cat(motion, state)``). One synchronous write port (the host,
   or the Clear sweep) and one synchronous read port (the trace engine).
 - ``in_set``: the state set S as a 256-bit register (the host adds states; ``n_states`` counts).

@@ -185,3 +185,38 @@ def test_online_blame_check_counts_where_cycle_stops_are_blamed(capsys):
     assert check.main(["1", "200", "leg"]) == 0
     interactions, targets, counts = capsys.readouterr().out.split(" ", 2)
     assert int(interactions) in (200, 201) and "'cycles'" in counts
+
+
+def test_online_round9_runs_each_rule_and_its_default_is_the_default_lifetime(tmp_path, capsys):
+    """Round 9's harness: ``default`` is the lifetime of today's defaults (``loop_blame`` "cycle");
+    ``two_if``, ``likely`` and ``crashvote`` run a smoke lifetime, and the baseline is scored in
+    every phase."""
+    round9 = _script("online_round9")
+    out = tmp_path / "r9.jsonl"
+    for argv in (["default"], ["default", "--param", "two_if=\"surprise\""], ["likely"], ["crashvote"]):
+        assert round9.main([argv[0], "1", "--budget", "150", "--out", str(out), *argv[1:]]) == 0
+    runs = [json.loads(line) for line in out.read_text().splitlines()]
+    assert len(runs) == 4 and all(150 <= r["interactions"] <= 160 for r in runs)  # crashes and loops may end past it
+    assert all(r["baseline"]["phases"] == r["phases"] for r in runs)
+    assert all(r["crash_entries"]["crash_entries"] >= r["crash_entries"]["crash_entries_safe_half"] for r in runs)
+    from cosim.online import OnlineConfig, make_run
+
+    plain = make_run(OnlineConfig(seed=1, max_interactions=150)).run()
+    assert (runs[0]["interactions"], runs[0]["targets"], runs[0]["phases"]) == (
+        plain.interactions, plain.targets, len(plain.phases))
+    capsys.readouterr()
+    assert round9.main(["--table", str(out)]) == 0
+    assert "| likely | 1: **" in capsys.readouterr().out
+
+
+def test_online_round9_two_cycle_odds_on_a_small_model():
+    import numpy as np
+
+    round9 = _script("online_round9")
+    outcomes = np.full((256, 8, 4), -1, dtype=np.int64)
+    outcomes[1, 0, :2] = [2, 1]  # 1 -0-> 2 half the time (1 -> 1 the other half: no 2-cycle)
+    outcomes[2, 0, :4] = [1, 1, 1, 3]  # 2 -0-> 1 three times in four
+    tables = np.zeros((2, 256), dtype=np.int64)
+    tables[1, 2] = 5  # the second controller leaves 2 by a motion never tried
+    odds = round9.two_cycle_odds(tables, outcomes, np.array([1, 2]))
+    assert np.allclose(odds, [[0.5 * 0.75, 0.75 * 0.5], [0.0, 0.0]])
