@@ -132,8 +132,9 @@ TARGETS = {t.name: t for t in (
            "ecp5", "SystemLinkTop", _system_top, f"{BUILD_NAME}.bit"),
     Target("ulx3s-learner", "ULX3S", "amaranth_boards.ulx3s:ULX3S_85F_Platform",
            "ecp5", f"LearnerLinkTop(lanes={LEARNER_LANES})", _learner_top, f"{BUILD_NAME}.bit",
-           # router2: routes the ~40k cells in a fraction of router1's time (same timing report)
-           nextpnr_opts="--router router2", in_default=False,  # an hour or more: only when named
+           # router1: router2 stalled on the 7- and 8-lane builds (1,700 and 4,000 overused wires,
+           # rising); router1 routed 7 lanes in 22 min (docs/learner.md, "Resources and clock")
+           nextpnr_opts="--router router1", in_default=False,  # an hour or more: only when named
            params=lambda: {k: v for k, v in learner_config().to_dict().items()
                            if k in ("lanes", "population", "tournament")}),
 )}

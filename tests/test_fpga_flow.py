@@ -104,7 +104,7 @@ def test_targets_and_the_board_clocks():
     assert list(fpga.TARGETS) == ["icebreaker-controller", "icebreaker-evaluator", "ulx3s-system", "ulx3s-learner"]
     learner = fpga.TARGETS["ulx3s-learner"]
     assert learner.params() == {"population": 500, "tournament": 20, "lanes": fpga.LEARNER_LANES}
-    assert "--router router2" in learner.nextpnr_opts
+    assert "--router router1" in learner.nextpnr_opts
     assert fpga.DEFAULT_TARGETS == ["icebreaker-controller", "icebreaker-evaluator", "ulx3s-system"]
     assert {t.family for t in fpga.TARGETS.values()} == {"ice40", "ecp5"}
 
