@@ -298,19 +298,28 @@ def key_of(r: dict) -> str:
             + "".join(f" {k}={v}" for k, v in sorted(r.get("params", {}).items())))
 
 
-def table(path: Path) -> str:
+def rows_by_variant(path: Path) -> dict[str, list[dict]]:
+    """The JSON lines of ``path`` grouped by variant and settings (``key_of``), each group in
+    seed order (a seed run twice: its last line)."""
     rows: dict[str, dict[int, dict]] = {}
     for line in path.read_text().splitlines():
         r = json.loads(line)
         rows.setdefault(key_of(r), {})[r["seed"]] = r
+    return {key: [by_seed[s] for s in sorted(by_seed)] for key, by_seed in rows.items()}
+
+
+def seed_cells(rs: list[dict]) -> tuple[str, str]:
+    """The per-seed cell and the median (a lifetime short of 64 targets counts as a stall)."""
+    cells = ", ".join(f"{r['seed']}: {cell(r)}" for r in rs)
+    med = float(np.median([r["interactions"] if r["targets"] >= 64 else 10 ** 9 for r in rs]))
+    return cells, (f"{med:,.0f}" if med < 10 ** 9 else "stall")
+
+
+def table(path: Path) -> str:
     out = ["| variant | per seed (seed: interactions to 64, or targets @ budget) | median | learning phases |",
            "|---|---|---|---|"]
-    for key, by_seed in rows.items():
-        rs = [by_seed[s] for s in sorted(by_seed)]
-        cells = ", ".join(f"{r['seed']}: {cell(r)}" for r in rs)
-        vals = [r["interactions"] if r["targets"] >= 64 else 10 ** 9 for r in rs]
-        med = float(np.median(vals))
-        median = f"{med:,.0f}" if med < 10 ** 9 else "stall"
+    for key, rs in rows_by_variant(path).items():
+        cells, median = seed_cells(rs)
         out.append(f"| {key} | {cells} | {median} | {', '.join(str(r['phases']) for r in rs)} |")
     return "\n".join(out)
 

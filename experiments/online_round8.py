@@ -41,9 +41,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from cosim.failures import Cycles, blame  # noqa: E402
 from cosim.online import OnlineConfig, make_run  # noqa: E402
-from experiments.online_round6 import cell, lost, seeds_of  # noqa: E402
+from experiments.online_round6 import lost, seeds_of  # noqa: E402
 from experiments.online_round7 import DEFAULT_PARAMS as R7_PARAMS  # noqa: E402
-from experiments.online_round7 import VARIANTS, AdaptiveCycles, Round7, parse_kv  # noqa: E402
+from experiments.online_round7 import (  # noqa: E402
+    VARIANTS, AdaptiveCycles, Round7, key_of, parse_kv, rows_by_variant, seed_cells)
 from ga.evaluator import fitness as model_fitness  # noqa: E402
 from ga.motions import OBSTACLE_MASK  # noqa: E402
 
@@ -200,24 +201,11 @@ def leg_failures(failures, n_legs: int) -> list[int]:
     return [counts.get(i, 0) for i in range(max(n_legs, max(counts, default=0)) + 1)]
 
 
-def key_of(r: dict) -> str:
-    return (r["variant"] + "".join(f" {k}={v}" for k, v in sorted(r["settings"].items()))
-            + "".join(f" {k}={v}" for k, v in sorted(r.get("params", {}).items())))
-
-
 def table(path: Path) -> str:
-    rows: dict[str, dict[int, dict]] = {}
-    for line in path.read_text().splitlines():
-        r = json.loads(line)
-        rows.setdefault(key_of(r), {})[r["seed"]] = r
     out = ["| variant | per seed (seed: interactions to 64, or targets @ budget) | median | failures | CPU-s |",
            "|---|---|---|---|---|"]
-    for key, by_seed in rows.items():
-        rs = [by_seed[s] for s in sorted(by_seed)]
-        cells = ", ".join(f"{r['seed']}: {cell(r)}" for r in rs)
-        vals = [r["interactions"] if r["targets"] >= 64 else 10 ** 9 for r in rs]
-        med = float(np.median(vals))
-        median = f"{med:,.0f}" if med < 10 ** 9 else "stall"
+    for key, rs in rows_by_variant(path).items():
+        cells, median = seed_cells(rs)
         fails = ", ".join(str(r.get("failures", r["phases"])) for r in rs)
         cpu = f"{min(r['cpu_s'] for r in rs):.0f}-{max(r['cpu_s'] for r in rs):.0f}"
         out.append(f"| {key} | {cells} | {median} | {fails} | {cpu} |")

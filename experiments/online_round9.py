@@ -39,7 +39,6 @@ motion in their states.
 
 from __future__ import annotations
 
-import json
 import sys
 from collections import Counter
 from pathlib import Path
@@ -53,7 +52,8 @@ from experiments.online_round7 import AdaptiveCycles  # noqa: E402
 from experiments.online_round7 import VARIANTS as R7_VARIANTS  # noqa: E402
 from experiments.online_round8 import DEFAULT_PARAMS as R8_PARAMS  # noqa: E402
 from experiments.online_round6 import cell  # noqa: E402
-from experiments.online_round8 import Round8, detected_cycle, key_of  # noqa: E402
+from experiments.online_round7 import rows_by_variant  # noqa: E402
+from experiments.online_round8 import Round8, detected_cycle  # noqa: E402
 from experiments.online_round8 import main as round8_main  # noqa: E402
 from ga.evaluator import evaluate_tables, fitness as spec_fitness  # noqa: E402
 from ga.motions import N_MOTIONS, N_STATES, OBSTACLE_MASK  # noqa: E402
@@ -189,19 +189,16 @@ def table(path: Path) -> str:
     """The screening table: per seed, the median, and against the ``default`` row (no setting, no
     parameter: today's defaults) on the seeds both ran: how many lifetimes were shorter and the
     geometric mean of the per-seed ratios (a run out of budget counts as the budget)."""
-    rows: dict[str, dict[int, dict]] = {}
-    for line in path.read_text().splitlines():
-        r = json.loads(line)
-        rows.setdefault(key_of(r), {})[r["seed"]] = r
+    rows = rows_by_variant(path)
 
     def value(r):
         return r["interactions"] if r["targets"] >= 64 else r["budget"]
 
-    ref = rows.get("default", {})
+    ref = {r["seed"]: r for r in rows.get("default", [])}
     out = ["| variant | per seed (seed: interactions to 64, or targets @ budget) | median | against the defaults: shorter, ratio | failures | CPU-s |",
            "|---|---|---|---|---|---|"]
-    for key, by_seed in rows.items():
-        rs = [by_seed[s] for s in sorted(by_seed)]
+    for key, rs in rows.items():
+        by_seed = {r["seed"]: r for r in rs}
         cells = ", ".join(f"{r['seed']}: {cell(r)}" for r in rs)
         med = f"{float(np.median([value(r) for r in rs])):,.0f}"
         both = [s for s in by_seed if s in ref]
