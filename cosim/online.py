@@ -172,6 +172,8 @@ class OnlineRun:
                     self.progress_bar.set_postfix(interactions=self.interactions, generations=self.generations)
                 if self.targets >= cfg.n_targets:
                     return "done", steps, s, a, ""
+                if extra := self.extra_stop(steps, at_target=True):
+                    return extra, steps, s, a, ""
                 continue
             if step.crashed:
                 return "crash", steps, s, a, ""
@@ -181,6 +183,14 @@ class OnlineRun:
                             detector.name if detector.reason == "loop" else "")
             if cfg.max_interactions and self.interactions >= cfg.max_interactions:
                 return "budget", steps, s, a, ""
+            if extra := self.extra_stop(steps, at_target=False):
+                return extra, steps, s, a, ""
+
+    def extra_stop(self, steps: int, at_target: bool) -> str:
+        """A reason to end the execution phase other than a failure, the last target or the budget,
+        asked after each step (``at_target``: the step reached a target); '' = go on. None here: a
+        hook for experiments (experiments/online_round8.py: a phase at each target, every K steps)."""
+        return ""
 
     def blamed(self, detector) -> tuple[int, int]:
         """The (state, motion) the stop by ``detector`` is put on (the escape avoids it)."""

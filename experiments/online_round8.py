@@ -74,40 +74,12 @@ class Round8(Round7):
     def loops_this_leg(self) -> int:
         return self.leg_loops if self.leg_of_loops == self.targets else 0
 
-    def execute(self):
-        """``OnlineRun.execute`` with the extra phase starts (a target, every K steps)."""
-        cfg, prm = self.config, self.params
-        every, at_target = int(prm["every"]), bool(prm["at_target"])
-        steps = 0
-        self.track.new_phase()
-        for detector in self.detectors:
-            detector.reset()
-        self.leg_start = self.interactions
-        while True:
-            s = self.state
-            a = self.controller.motion(s)
-            step = self.step(a)
-            steps += 1
-            fired = [detector.observe(self.track) for detector in self.detectors]
-            if step.reached:
-                self.leg_start = self.interactions
-                for detector in self.detectors:
-                    detector.reset()
-                if self.targets >= cfg.n_targets:
-                    return "done", steps, s, a, ""
-                if at_target:
-                    return "target", steps, s, a, ""
-                continue
-            if step.crashed:
-                return "crash", steps, s, a, ""
-            for detector, hit in zip(self.detectors, fired):
-                if hit:
-                    return (detector.reason, steps, *self.blamed(detector),
-                            detector.name if detector.reason == "loop" else "")
-            if cfg.max_interactions and self.interactions >= cfg.max_interactions:
-                return "budget", steps, s, a, ""
-            if every and steps % every == 0:
-                return "periodic", steps, s, a, ""
+    def extra_stop(self, steps: int, at_target: bool) -> str:
+        """The extra phase starts: at a target (``at_target``), every K execution steps (``every``)."""
+        if at_target:
+            return "target" if self.params["at_target"] else ""
+        every = int(self.params["every"])
+        return "periodic" if every and steps % every == 0 else ""
 
     def blamed(self, detector) -> tuple[int, int]:
         """The (state, motion) the stop is blamed on: ``blame`` = leg (the defaults: the most
