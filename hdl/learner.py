@@ -23,7 +23,9 @@ Datapath
   lane and to a host gather of the 50 banks), and every path between a lane and a bank starts
   or ends at a register: ``ga.hardware_ga.ROW_LATENCY`` = 3 cycles from a row's draw to its
   shadow write.
-- A global slot counter (``tau`` in 0..C-1, ``slot`` in 0..S) whose value reaches lane j through
+- A global slot counter (``tau`` in 0..C-1, ``slot`` in 0..S, and ``base`` = slot * L, counted so
+  that a lane's child index slot * L + j is an adder, not a multiplier: with L = 7 the product
+  was the critical path of the routed build) whose value reaches lane j through
   j registers: lane j runs j cycles behind lane 0. A lane asks bank r in the cycle it draws its
   row r, so two lanes never ask the same group in one cycle (their rows differ by their lane
   distance, less than M); the same holds for the bank writes, for the score writes and for the
@@ -162,12 +164,14 @@ class Learner(wiring.Component):
         # -- the slot counter and its delay line (lane j sees it j cycles late) ------------------------
         tau = Signal(TAU_BITS)
         slot = Signal(range(S + 1))
+        base = Signal(range(S * L + 1))  # slot * L, counted (no multiplier): child = base + j
         active = Signal()
-        stage = (tau, slot, active)
+        stage = (tau, slot, base, active)
         for j, lane in enumerate(lanes):
-            m.d.comb += [lane.tau.eq(stage[0]), lane.slot.eq(stage[1]), lane.active.eq(stage[2])]
+            m.d.comb += [lane.tau.eq(stage[0]), lane.slot.eq(stage[1]), lane.base.eq(stage[2]),
+                         lane.active.eq(stage[3])]
             delayed = (Signal(TAU_BITS, name=f"tau_d{j + 1}"), Signal(range(S + 1), name=f"slot_d{j + 1}"),
-                       Signal(name=f"active_d{j + 1}"))
+                       Signal(range(S * L + 1), name=f"base_d{j + 1}"), Signal(name=f"active_d{j + 1}"))
             m.d.sync += [d.eq(s) for d, s in zip(delayed, stage)]
             stage = delayed
 
@@ -279,7 +283,7 @@ class Learner(wiring.Component):
                 m.d.comb += self.ready.eq(lanes_ready)
                 with m.If(self.start & lanes_ready & (self.generations != 0)):
                     m.d.comb += pass_start.eq(1)
-                    m.d.sync += [passes_left.eq(self.generations), tau.eq(0), slot.eq(0),
+                    m.d.sync += [passes_left.eq(self.generations), tau.eq(0), slot.eq(0), base.eq(0),
                                  active.eq(1), self.cycles.eq(0)]
                     m.next = "Run"
             with m.State("Run"):
@@ -290,7 +294,7 @@ class Learner(wiring.Component):
                         m.d.sync += [active.eq(0), drain.eq(0)]
                         m.next = "Drain"
                     with m.Else():
-                        m.d.sync += slot.eq(slot + 1)
+                        m.d.sync += [slot.eq(slot + 1), base.eq(base + L)]
                 with m.Else():
                     m.d.sync += tau.eq(tau + 1)
             with m.State("Drain"):
@@ -305,6 +309,6 @@ class Learner(wiring.Component):
                         m.next = "Idle"
                     with m.Else():
                         m.d.comb += pass_start.eq(1)
-                        m.d.sync += [tau.eq(0), slot.eq(0), active.eq(1)]
+                        m.d.sync += [tau.eq(0), slot.eq(0), base.eq(0), active.eq(1)]
                         m.next = "Run"
         return m

@@ -52,7 +52,7 @@ class Lane(wiring.Component):
     """One evaluator lane with its generators, tournament and row mutation (see the module
     docstring). ``index`` is the lane number j (its generators' salts).
 
-    Ports: ``tau``, ``slot``, ``active`` (the slot counter as lane j sees it), ``c_last`` (C - 1),
+    Ports: ``tau``, ``slot``, ``base`` (= slot * L), ``active`` (the slot counter as lane j sees it), ``c_last`` (C - 1),
     ``copy_mode``, ``cur_buf``, ``best_prev`` (pass constants), ``seed``/``seed_we``, the score
     replica's write port ``score_*``, the model port and state inputs (to the evaluator), the bank request
     ``rd_en``/``rd_row``/``rd_addr`` and the row ``data_row`` whose data is expected on
@@ -68,7 +68,8 @@ class Lane(wiring.Component):
         ib = index_bits(config.population)
         self.ib = ib
         ports = {
-            "tau": In(TAU_BITS), "slot": In(range(config.slots + 1)), "active": In(1),
+            "tau": In(TAU_BITS), "slot": In(range(config.slots + 1)),
+            "base": In(range(config.slots * config.lanes + 1)), "active": In(1),
             "c_last": In(TAU_BITS), "copy_mode": In(1), "cur_buf": In(1), "best_prev": In(ib),
             "seed": In(32), "seed_we": In(1),
             "score_addr": In(ib + 1), "score_data": In(hg.SCORE_BITS), "score_we": In(1),
@@ -120,7 +121,7 @@ class Lane(wiring.Component):
             m.d.sync += [gens[g].eq(draws[g]) for g in hg.ROW_GENERATORS]
 
         child = Signal(range(cfg.slots * L + 1))
-        m.d.comb += child.eq(slot * L + self.index)
+        m.d.comb += child.eq(self.base + self.index)  # base = slot * L, counted by the engine
         child_valid = child < P
         elite = ~self.copy_mode & (child == 0)
         plain = self.copy_mode | elite  # copied unchanged: no crossover, no mutation
