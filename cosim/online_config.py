@@ -14,6 +14,7 @@ import numpy as np
 
 from cosim.failures import Cycles, LegTimeout, NoProgress, Reentries, Repeats
 from ga.evolution import GAConfig
+from ga.hardware_ga import LEARNER_LANES
 from ga.motions import DISTANCE_RULES
 
 LOOP_BLAMES = ("cycle", "leg")  # OnlineConfig.loop_blame (docs/online.md, round 8)
@@ -66,7 +67,7 @@ class OnlineConfig:
     # evaluates) or "hardware" (the learning board: ga.hardware_ga / hdl.learner with `lanes`
     # evaluator lanes, SPEC section 12; cosim.learning_phase, docs/learner.md)
     ga: str = "host"
-    lanes: int = 8
+    lanes: int = LEARNER_LANES  # the ulx3s-learner bitstream's (ga.hardware_ga)
     # adaptation: blind IR bit `blind_bit` (stuck at 0) once `blind_after_target` targets are reached
     blind_bit: int | None = None
     blind_after_target: int | None = None

@@ -83,6 +83,11 @@ CHOICE_MASK = 0xFF  # ROW1, ROW2, ROW3 bits 0..7
 FRESH_POLARITY_SHIFT = 8  # ROW3 bits 8..15: polarity of fresh literal i (0: x_i)
 SCORE_BITS = 17
 STATE_FORMAT = 1  # of HardwareGA.state_dict
+# The lanes of the ulx3s-learner bitstream (hdl.fpga; docs/learner.md, "Resources and clock": the
+# lanes that fit 80 % of the LFE5U-85F's LUTs and route). The default of HardwareGAConfig and of the
+# on-line run's --lanes, so that `--ga hardware` on the reference is the board's lifetime: a lane
+# count changes the children's random streams (child i is bred by lane i % lanes).
+LEARNER_LANES = 7
 
 
 # -- parameters --------------------------------------------------------------------------------------
@@ -101,7 +106,7 @@ class HardwareGAConfig:
 
     population: int = 500
     tournament: int = 20
-    lanes: int = 8
+    lanes: int = LEARNER_LANES
     crossover_rate: float = 0.5
     literal_rate: float = 0.004  # per literal field (8 per row)
     output_rate: float = 0.004  # per output bit (3 per row)

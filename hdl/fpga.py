@@ -44,6 +44,8 @@ from typing import Callable
 from amaranth.hdl import Elaboratable, Module
 from amaranth.lib import io
 
+from ga.hardware_ga import LEARNER_LANES  # the lanes of the ulx3s-learner bitstream (re-exported)
+
 REPO_ROOT = Path(__file__).resolve().parents[1]
 BUILD_ROOT = Path("build/fpga")
 RESULTS = Path("results/fpga.json")
@@ -84,11 +86,6 @@ def _evaluator_top(clk_freq_hz: float):
 def _system_top(clk_freq_hz: float):
     from hdl.link_tops import SystemLinkTop
     return SystemLinkTop(clk_freq_hz=clk_freq_hz)
-
-
-# The learning engine's lanes in the ulx3s-learner bitstream (docs/learner.md, "Resources and
-# clock": the lanes that fit 80 % of the LFE5U-85F's LUTs, and the build time they cost).
-LEARNER_LANES = 7
 
 
 def learner_config(lanes: int = LEARNER_LANES):
