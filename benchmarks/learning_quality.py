@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import statistics
 import time
 from pathlib import Path
@@ -22,8 +23,15 @@ OUT = Path("results/learning_quality.jsonl")
 
 
 def _seeds(text: str) -> list[int]:
+    """"101-120" or "7" -> the seeds (argparse type: a bad value is one error line)."""
     lo, _, hi = text.partition("-")
-    return list(range(int(lo), int(hi or lo) + 1))
+    try:
+        seeds = list(range(int(lo), int(hi or lo) + 1))
+    except ValueError:
+        seeds = []
+    if not seeds:
+        raise argparse.ArgumentTypeError(f"expected FIRST-LAST or one seed, got {text!r}")
+    return seeds
 
 
 def run_one(seed: int, ga: str, max_interactions: int) -> dict:
@@ -48,12 +56,20 @@ def report(rows: list[dict]) -> dict:
     if "host" in out and "hardware" in out:
         out["ratio_hardware_to_host"] = round(
             out["hardware"]["median_interactions"] / out["host"]["median_interactions"], 3)
+        by_seed = {(r["seed"], r["ga"]): r["interactions"] for r in rows}
+        pairs = [(by_seed[s, "hardware"], by_seed[s, "host"]) for s, ga in by_seed if ga == "host"
+                 and (s, "hardware") in by_seed]
+        if pairs:  # per seed: the lifetimes are chaotic, so say how often and by how much
+            out["paired_seeds"] = len(pairs)
+            out["hardware_shorter"] = sum(hw < host for hw, host in pairs)
+            out["geometric_mean_ratio"] = round(math.exp(statistics.fmean(
+                math.log(hw / host) for hw, host in pairs)), 3)
     return out
 
 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(prog="python -m benchmarks.learning_quality", description=__doc__.splitlines()[0])
-    p.add_argument("--seeds", default="21-40")
+    p.add_argument("--seeds", type=_seeds, default="21-40")
     p.add_argument("--max-interactions", type=int, default=40_000)
     p.add_argument("--out", type=Path, default=OUT)
     p.add_argument("--ga", choices=("host", "hardware", "both"), default="both",
@@ -62,7 +78,7 @@ def main(argv=None) -> int:
     rows = [json.loads(line) for line in args.out.read_text().splitlines()] if args.out.exists() else []
     done = {(r["seed"], r["ga"]) for r in rows}
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    for seed in _seeds(args.seeds):
+    for seed in args.seeds:
         for ga in ("host", "hardware") if args.ga == "both" else (args.ga,):
             if (seed, ga) in done:
                 continue
@@ -71,7 +87,7 @@ def main(argv=None) -> int:
             with args.out.open("a") as f:
                 f.write(json.dumps(row) + "\n")
             print(json.dumps(row), flush=True)
-    print(json.dumps(report([r for r in rows if r["seed"] in _seeds(args.seeds)]), indent=1))
+    print(json.dumps(report([r for r in rows if r["seed"] in args.seeds]), indent=1))
     return 0
 
 
