@@ -69,6 +69,9 @@ def main(argv=None) -> int:
             with args.out.open("a") as f:
                 f.write(json.dumps({"model": name, "seed": seed, "lanes": args.lanes, "host": host, "hardware": hw}) + "\n")
         d = np.array(diffs)
+        if len(d) < 2:  # no standard error from one seed
+            print(f"model {name}: hardware - host best fitness per phase: " + ", ".join(f"{m:+.4f}" for m in d[0]))
+            continue
         print(f"model {name}: hardware - host best fitness per phase, mean (sd of mean): "
               + ", ".join(f"{m:+.4f} ({s:.4f})" for m, s in zip(d.mean(0), d.std(0, ddof=1) / np.sqrt(len(d)))),
               flush=True)
