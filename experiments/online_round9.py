@@ -136,12 +136,15 @@ class Round9(Round8):
             self._voted, self._voted_at = m, self.interactions
         return self._voted
 
+    def vote_penalty(self, tables: np.ndarray, n: int) -> np.ndarray:
+        """The SPEC fitness on the board's model minus that on the voted model (``crashvote``)."""
+        rule = self.config.distance_rule
+        return (spec_fitness(evaluate_tables(tables, self.mirror, rule), n)
+                - spec_fitness(evaluate_tables(tables, self.voted_model(), rule), n))
+
     def penalty(self, pop: np.ndarray, n: int) -> np.ndarray:
         if self.variant == "crashvote":  # the SPEC fitness on the voted model instead of the board's
-            tables = truth_tables(pop, reflex=self.config.reflex)
-            rule = self.config.distance_rule
-            return (spec_fitness(evaluate_tables(tables, self.mirror, rule), n)
-                    - spec_fitness(evaluate_tables(tables, self.voted_model(), rule), n))
+            return self.vote_penalty(truth_tables(pop, reflex=self.config.reflex), n)
         if self.variant != "likely":
             return super().penalty(pop, n)
         tables = truth_tables(pop, reflex=self.config.reflex).astype(np.int64)
@@ -185,16 +188,17 @@ class Round9(Round8):
                 "crash_entries": entries}
 
 
-def table(path: Path) -> str:
+def table(path: Path, reference: Path | None = None) -> str:
     """The screening table: per seed, the median, and against the ``default`` row (no setting, no
-    parameter: today's defaults) on the seeds both ran: how many lifetimes were shorter and the
-    geometric mean of the per-seed ratios (a run out of budget counts as the budget)."""
+    parameter: today's defaults; of ``reference`` when given, a later round's reuse of this
+    round's rows) on the seeds both ran: how many lifetimes were shorter and the geometric mean
+    of the per-seed ratios (a run out of budget counts as the budget)."""
     rows = rows_by_variant(path)
 
     def value(r):
         return r["interactions"] if r["targets"] >= 64 else r["budget"]
 
-    ref = {r["seed"]: r for r in rows.get("default", [])}
+    ref = {r["seed"]: r for r in (rows_by_variant(reference) if reference else rows).get("default", [])}
     out = ["| variant | per seed (seed: interactions to 64, or targets @ budget) | median | against the defaults: shorter, ratio | failures | CPU-s |",
            "|---|---|---|---|---|---|"]
     for key, rs in rows.items():

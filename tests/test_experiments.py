@@ -220,3 +220,41 @@ def test_online_round9_two_cycle_odds_on_a_small_model():
     tables[1, 2] = 5  # the second controller leaves 2 by a motion never tried
     odds = round9.two_cycle_odds(tables, outcomes, np.array([1, 2]))
     assert np.allclose(odds, [[0.5 * 0.75, 0.75 * 0.5], [0.0, 0.0]])
+
+
+def test_online_round10_runs_each_variant_and_its_cheap_penalty_is_round9s(tmp_path, capsys):
+    """Round 10's harness: ``likely`` (with ``check``: round 9's penalty computed beside it),
+    its 3-cycles, ``vote`` and ``crashfreq`` parameters, and ``crashfreq`` run a smoke lifetime;
+    the cheap 2-cycle penalty equals round 9's and gives round 9's lifetime."""
+    round9, round10 = _script("online_round9"), _script("online_round10")
+    out = tmp_path / "r10.jsonl"
+    runs_of = (["likely", "--param", "check=1"], ["likely", "--param", "cycles=3"], ["likely", "--param", "vote=1"],
+               ["likely", "--param", "crashfreq=1"], ["crashfreq"])
+    for argv in runs_of:
+        assert round10.main([argv[0], "1", "--budget", "150", "--out", str(out), *argv[1:]]) == 0
+    runs = [json.loads(line) for line in out.read_text().splitlines()]
+    assert len(runs) == len(runs_of) and all(150 <= r["interactions"] <= 160 for r in runs)
+    assert runs[0]["check"]["calls"] == 10 * runs[0]["phases"] and runs[0]["check"]["max_diff"] < 1e-12
+    assert round9.main(["likely", "1", "--budget", "150", "--out", str(tmp_path / "r9.jsonl")]) == 0
+    r9 = json.loads((tmp_path / "r9.jsonl").read_text())
+    assert (r9["interactions"], r9["targets"], r9["phases"]) == (runs[0]["interactions"], runs[0]["targets"],
+                                                                 runs[0]["phases"])
+    capsys.readouterr()
+    assert round10.main(["--table", str(out)]) == 0
+    assert "| likely check=1 | 1: **" in capsys.readouterr().out
+
+
+def test_online_round10_cycles_on_a_small_model():
+    import numpy as np
+
+    round10 = _script("online_round10")
+    history = {(1, 0): [2, 1], (2, 0): [1, 1, 1, 3], (3, 0): [1]}
+    shares = round10.outcome_shares(history)
+    tables = np.zeros((2, 256), dtype=np.int64)
+    tables[1, 2] = 5  # the second controller leaves 2 by a motion never tried
+    states, factors = round10.likely_cycles(shares, [1, 2], 2)
+    assert states.tolist() == [[1, 2], [2, 1]]
+    assert np.allclose(round10.cycle_odds(tables, states, factors), [2 * 0.5 * 0.75, 0.0])  # as round 9's test
+    states, factors = round10.likely_cycles(shares, [1, 2], 3)
+    assert states.tolist() == [[1, 2, 3], [2, 3, 1]]  # 1 -> 2 -> 3 -> 1 from each obstacle start
+    assert np.allclose(round10.cycle_odds(tables, states, factors), [2 * 0.5 * 0.25 * 1.0, 0.0])

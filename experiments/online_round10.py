@@ -1,0 +1,165 @@
+"""Round 10 of the on-line search (docs/online.md, "Round 10"): the normative-model direction of
+round 9 (a loop and a crash weighted by the robot's own outcomes), made cheap and combined.
+
+    python experiments/online_round10.py VARIANT SEEDS [--budget 20000] [--set key=value ...]
+                                         [--param key=value ...]
+    python experiments/online_round10.py likely 1 --param check=1   # with round 9's penalty beside it
+    python experiments/online_round10.py likely 1-8 --param cycles=3
+    python experiments/online_round10.py likely 1-8 --param vote=1
+    python experiments/online_round10.py crashfreq 1-8
+    python experiments/online_round10.py --table build/experiments/round10.jsonl   # against round 9's defaults
+
+A lifetime is round 9's (``experiments.online_round9.Round9``: round 8's with the cycle blame of
+today's defaults, round 7's instrumentation, the baseline scored in every phase). New here, all
+host side, changes of SPEC section 7's fitness measured in the reference backend only:
+
+- variant ``likely``: round 9's penalty (``w_likely`` / N times the probability, summed over the
+  obstacle states s of S, of a cycle s -> s2 -> ... -> s under the robot's kept outcomes as
+  frequencies) computed once per learning phase as a list of the cycles the kept outcomes allow,
+  each with its per-motion factors, so a generation costs a gather and a product over (P, cycles)
+  instead of round 9's (P, |S|, H, H) array. ``cycles`` = 2: round 9's 2-cycles (``check`` = 1
+  computes round 9's penalty beside it and keeps the largest difference); ``cycles`` = 3: the
+  3-cycles s -> s2 -> s3 -> s (distinct states) as well. ``vote`` = 1: round 9's ``crashvote``
+  model as well (a crash entry of a pair that went through in at least ``safe_share`` of its
+  executions holds its latest non-crash outcome for the phase). ``crashfreq`` = 1: the crash term
+  as below;
+- variant ``crashfreq``: the SPEC crash term #{s in S : the entry of (s, T(s)) is a crash} becomes
+  the expected crashes, the sum over s in S of the crash share of (s, T(s)) in the robot's
+  executions of it (``w_crashfreq`` = 0.5, the SPEC weight, over N); the model (and so the traces
+  and loops) unchanged.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from experiments.online_round8 import main as round8_main  # noqa: E402
+from experiments.online_round9 import DEFAULT_PARAMS as R9_PARAMS  # noqa: E402
+from experiments.online_round9 import Round9, two_cycle_odds  # noqa: E402
+from experiments.online_round9 import table as round9_table  # noqa: E402
+from ga.motions import N_MOTIONS, N_STATES, OBSTACLE_MASK  # noqa: E402
+from ga.truth_table import truth_tables  # noqa: E402
+
+DEFAULT_OUT = Path("build/experiments/round10.jsonl")
+REFERENCE = Path("build/experiments/round9.jsonl")  # its ``default`` rows: today's defaults
+VARIANTS = ("default", "likely", "crashfreq")
+R10_PARAMS = {"cycles": 2, "vote": 0, "crashfreq": 0, "w_crashfreq": 0.5, "check": 0}
+DEFAULT_PARAMS = {**R9_PARAMS, **R10_PARAMS}
+
+
+def outcome_shares(history: dict) -> np.ndarray:
+    """(256, 8, 256): the share of each next state among the kept outcomes of each (state, motion)."""
+    shares = np.zeros((N_STATES, N_MOTIONS, N_STATES))
+    for (s, a), kept in history.items():
+        np.add.at(shares[s, a], kept, 1.0)
+        shares[s, a] /= len(kept)
+    return shares
+
+
+def likely_cycles(shares: np.ndarray, starts, length: int) -> tuple[np.ndarray, np.ndarray]:
+    """The cycles of ``length`` distinct states from each of ``starts`` that the kept outcomes
+    allow (each step to a state other than its own): their states (C, length) and per-motion
+    factors (C, length, 8), factor i = the share of the step from state i to state i + 1."""
+    reach = shares.sum(axis=1) > 0
+    np.fill_diagonal(reach, False)
+    succ = [np.flatnonzero(row) for row in reach]
+    found = []
+
+    def walk(path):
+        if len(path) == length:
+            if reach[path[-1], path[0]]:
+                found.append(tuple(path))
+            return
+        for nxt in succ[path[-1]]:
+            if nxt not in path:
+                walk([*path, int(nxt)])
+
+    for s in starts:
+        walk([int(s)])
+    states = np.array(found, dtype=np.int64).reshape(-1, length)
+    factors = shares[states, :, np.roll(states, -1, axis=1)]  # (C, length, 8)
+    return states, factors
+
+
+def cycle_odds(tables: np.ndarray, states: np.ndarray, factors: np.ndarray) -> np.ndarray:
+    """(P,): for each controller (truth tables (P, 256)) the summed probability of the cycles
+    (``likely_cycles``) under its motions."""
+    c, length = states.shape
+    if not c:
+        return np.zeros(tables.shape[0])
+    motions = tables[:, states].astype(np.int64)  # (P, C, length)
+    base = (np.arange(c * length) * N_MOTIONS).reshape(c, length)
+    return factors.ravel()[base + motions].prod(axis=2).sum(axis=1)
+
+
+class Round10(Round9):
+    """Round 9's lifetime with this round's penalties."""
+
+    def __init__(self, *a, **k):
+        super().__init__(*a, **k)
+        self._cycles_at = -1
+        self.check = {"calls": 0, "max_diff": 0.0}
+
+    def cycles(self) -> list[tuple[np.ndarray, np.ndarray]]:
+        """The cycle lists (2-cycles, and 3-cycles when ``cycles`` = 3) of the current outcomes."""
+        if self._cycles_at != self.interactions:
+            shares = outcome_shares(self.history)
+            states = self.mirror.states
+            starts = states[(states & OBSTACLE_MASK) != 0]
+            self._cycles = [likely_cycles(shares, starts, k) for k in range(2, int(self.params["cycles"]) + 1)]
+            self._cycles_at = self.interactions
+        return self._cycles
+
+    def crash_shares(self) -> np.ndarray:
+        """(256, 8): the crash share of each (state, motion) in the robot's executions of it."""
+        return self.tally[..., 0] / np.maximum(self.tally.sum(axis=2), 1)
+
+    def penalty(self, pop: np.ndarray, n: int) -> np.ndarray:
+        if self.variant not in ("likely", "crashfreq"):
+            return super().penalty(pop, n)
+        prm = self.params
+        tables = truth_tables(pop, reflex=self.config.reflex)
+        pen = np.zeros(len(pop))
+        if self.variant == "likely":
+            odds = [cycle_odds(tables, states, factors) for states, factors in self.cycles()]
+            if prm["check"]:
+                states = self.mirror.states
+                states = states[(states & OBSTACLE_MASK) != 0].astype(np.int64)
+                theirs = two_cycle_odds(tables.astype(np.int64), self.outcomes(), states).sum(axis=1)
+                self.check["calls"] += 1
+                self.check["max_diff"] = max(self.check["max_diff"], float(np.abs(theirs - odds[0]).max()))
+            pen += float(prm["w_likely"]) * np.sum(odds, axis=0) / n
+            if prm["vote"]:
+                pen += self.vote_penalty(tables, n)
+        if self.variant == "crashfreq" or prm["crashfreq"]:
+            s = self.mirror.states.astype(np.int64)
+            chosen = tables[:, s]
+            entries = (self.mirror.valid & self.mirror.crash)[s[None, :], chosen].sum(axis=1)
+            expected = self.crash_shares()[s[None, :], chosen].sum(axis=1)
+            pen += float(prm["w_crashfreq"]) * (expected - entries) / n
+        return pen
+
+    def extra_figures(self) -> dict:
+        figures = super().extra_figures()
+        if self.params["check"]:
+            figures["check"] = dict(self.check)
+        return figures
+
+
+def table(path: Path) -> str:
+    """Round 9's screening table, against round 9's ``default`` rows (REFERENCE)."""
+    return round9_table(path, reference=REFERENCE if REFERENCE.exists() else None)
+
+
+def main(argv=None) -> int:
+    return round8_main(argv, cls=Round10, defaults=DEFAULT_PARAMS, variants=VARIANTS, default_out=DEFAULT_OUT,
+                       description=__doc__, table_of=table)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
