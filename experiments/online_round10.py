@@ -3,7 +3,7 @@ round 9 (a loop and a crash weighted by the robot's own outcomes), made cheap an
 
     python experiments/online_round10.py VARIANT SEEDS [--budget 20000] [--set key=value ...]
                                          [--param key=value ...]
-    python experiments/online_round10.py likely 1 --param check=1   # with round 9's penalty beside it
+    python experiments/online_round10.py likely 1-8                 # round 9's likely (now cheaper)
     python experiments/online_round10.py likely 1-8 --param cycles=3
     python experiments/online_round10.py likely 1-8 --param vote=1
     python experiments/online_round10.py crashfreq 1-8
@@ -14,15 +14,14 @@ today's defaults, round 7's instrumentation, the baseline scored in every phase)
 host side, changes of SPEC section 7's fitness measured in the reference backend only:
 
 - variant ``likely``: round 9's penalty (``w_likely`` / N times the probability, summed over the
-  obstacle states s of S, of a cycle s -> s2 -> ... -> s under the robot's kept outcomes as
-  frequencies) computed once per learning phase as a list of the cycles the kept outcomes allow,
-  each with its per-motion factors, so a generation costs a gather and a product over (P, cycles)
-  instead of round 9's (P, |S|, H, H) array. ``cycles`` = 2: round 9's 2-cycles (``check`` = 1
-  computes round 9's penalty beside it and keeps the largest difference); ``cycles`` = 3: the
-  3-cycles s -> s2 -> s3 -> s (distinct states) as well. ``vote`` = 1: round 9's ``crashvote``
-  model as well (a crash entry of a pair that went through in at least ``safe_share`` of its
-  executions holds its latest non-crash outcome for the phase). ``crashfreq`` = 1: the crash term
-  as below;
+  obstacle states s of S, of a 2-cycle s -> s2 -> s under the robot's kept outcomes as
+  frequencies), which round 9's ``two_cycle_odds`` now computes from a per-phase table of the
+  outcome shares instead of a (P, |S|, H, H) gather, to the bit (same lifetimes). ``cycles`` = 3:
+  the 3-cycles s -> s2 -> s3 -> s (distinct states) as well, listed once per learning phase with
+  their per-motion factors (``likely_cycles``), so a generation costs a gather and a product over
+  (P, cycles). ``vote`` = 1: round 9's ``crashvote`` model as well (a crash entry of a pair that
+  went through in at least ``safe_share`` of its executions holds its latest non-crash outcome
+  for the phase). ``crashfreq`` = 1: the crash term as below;
 - variant ``crashfreq``: the SPEC crash term #{s in S : the entry of (s, T(s)) is a crash} becomes
   the expected crashes, the sum over s in S of the crash share of (s, T(s)) in the robot's
   executions of it (``w_crashfreq`` = 0.5, the SPEC weight, over N); the model (and so the traces
@@ -40,25 +39,16 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from experiments.online_round8 import main as round8_main  # noqa: E402
 from experiments.online_round9 import DEFAULT_PARAMS as R9_PARAMS  # noqa: E402
-from experiments.online_round9 import Round9, two_cycle_odds  # noqa: E402
+from experiments.online_round9 import Round9  # noqa: E402
 from experiments.online_round9 import table as round9_table  # noqa: E402
-from ga.motions import N_MOTIONS, N_STATES, OBSTACLE_MASK  # noqa: E402
+from ga.motions import N_MOTIONS, OBSTACLE_MASK  # noqa: E402
 from ga.truth_table import truth_tables  # noqa: E402
 
 DEFAULT_OUT = Path("build/experiments/round10.jsonl")
 REFERENCE = Path("build/experiments/round9.jsonl")  # its ``default`` rows: today's defaults
 VARIANTS = ("default", "likely", "crashfreq")
-R10_PARAMS = {"cycles": 2, "vote": 0, "crashfreq": 0, "w_crashfreq": 0.5, "check": 0}
+R10_PARAMS = {"cycles": 2, "vote": 0, "crashfreq": 0, "w_crashfreq": 0.5}
 DEFAULT_PARAMS = {**R9_PARAMS, **R10_PARAMS}
-
-
-def outcome_shares(history: dict) -> np.ndarray:
-    """(256, 8, 256): the share of each next state among the kept outcomes of each (state, motion)."""
-    shares = np.zeros((N_STATES, N_MOTIONS, N_STATES))
-    for (s, a), kept in history.items():
-        np.add.at(shares[s, a], kept, 1.0)
-        shares[s, a] /= len(kept)
-    return shares
 
 
 def likely_cycles(shares: np.ndarray, starts, length: int) -> tuple[np.ndarray, np.ndarray]:
@@ -103,15 +93,15 @@ class Round10(Round9):
     def __init__(self, *a, **k):
         super().__init__(*a, **k)
         self._cycles_at = -1
-        self.check = {"calls": 0, "max_diff": 0.0}
 
     def cycles(self) -> list[tuple[np.ndarray, np.ndarray]]:
-        """The cycle lists (2-cycles, and 3-cycles when ``cycles`` = 3) of the current outcomes."""
+        """The cycle lists of lengths 3..``cycles`` of the current outcomes (the 2-cycles are
+        round 9's ``likely_penalty``)."""
         if self._cycles_at != self.interactions:
-            shares = outcome_shares(self.history)
             states = self.mirror.states
             starts = states[(states & OBSTACLE_MASK) != 0]
-            self._cycles = [likely_cycles(shares, starts, k) for k in range(2, int(self.params["cycles"]) + 1)]
+            shares = self.back_shares()
+            self._cycles = [likely_cycles(shares, starts, k) for k in range(3, int(self.params["cycles"]) + 1)]
             self._cycles_at = self.interactions
         return self._cycles
 
@@ -126,14 +116,9 @@ class Round10(Round9):
         tables = truth_tables(pop, reflex=self.config.reflex)
         pen = np.zeros(len(pop))
         if self.variant == "likely":
-            odds = [cycle_odds(tables, states, factors) for states, factors in self.cycles()]
-            if prm["check"]:
-                states = self.mirror.states
-                states = states[(states & OBSTACLE_MASK) != 0].astype(np.int64)
-                theirs = two_cycle_odds(tables.astype(np.int64), self.outcomes(), states).sum(axis=1)
-                self.check["calls"] += 1
-                self.check["max_diff"] = max(self.check["max_diff"], float(np.abs(theirs - odds[0]).max()))
-            pen += float(prm["w_likely"]) * np.sum(odds, axis=0) / n
+            pen += self.likely_penalty(tables, n)  # round 9's 2-cycles, to the bit
+            for states, factors in self.cycles():
+                pen += float(prm["w_likely"]) * cycle_odds(tables, states, factors) / n
             if prm["vote"]:
                 pen += self.vote_penalty(tables, n)
         if self.variant == "crashfreq" or prm["crashfreq"]:
@@ -143,12 +128,6 @@ class Round10(Round9):
             expected = self.crash_shares()[s[None, :], chosen].sum(axis=1)
             pen += float(prm["w_crashfreq"]) * (expected - entries) / n
         return pen
-
-    def extra_figures(self) -> dict:
-        figures = super().extra_figures()
-        if self.params["check"]:
-            figures["check"] = dict(self.check)
-        return figures
 
 
 def table(path: Path) -> str:
