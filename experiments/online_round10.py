@@ -42,6 +42,7 @@ from experiments.online_round9 import DEFAULT_PARAMS as R9_PARAMS  # noqa: E402
 from experiments.online_round9 import Round9  # noqa: E402
 from experiments.online_round9 import table as round9_table  # noqa: E402
 from ga.motions import N_MOTIONS, OBSTACLE_MASK  # noqa: E402
+from ga.evaluator import evaluate_tables, fitness as spec_fitness  # noqa: E402
 from ga.truth_table import truth_tables  # noqa: E402
 
 DEFAULT_OUT = Path("build/experiments/round10.jsonl")
@@ -112,9 +113,12 @@ class Round10(Round9):
     def penalty(self, pop: np.ndarray, n: int) -> np.ndarray:
         if self.variant not in ("likely", "crashfreq"):
             return super().penalty(pop, n)
+        return self.penalty_of(truth_tables(pop, reflex=self.config.reflex), n)
+
+    def penalty_of(self, tables: np.ndarray, n: int) -> np.ndarray:
+        """This round's penalty of truth tables (P, 256)."""
         prm = self.params
-        tables = truth_tables(pop, reflex=self.config.reflex)
-        pen = np.zeros(len(pop))
+        pen = np.zeros(len(tables))
         if self.variant == "likely":
             pen += self.likely_penalty(tables, n)  # round 9's 2-cycles, to the bit
             for states, factors in self.cycles():
@@ -128,6 +132,16 @@ class Round10(Round9):
             expected = self.crash_shares()[s[None, :], chosen].sum(axis=1)
             pen += float(prm["w_crashfreq"]) * (expected - entries) / n
         return pen
+
+    def learn(self, reason, steps, state, motion, detector=""):
+        super().learn(reason, steps, state, motion, detector)
+        if self.variant == "default" or self.best_rows is None or not self.mirror.n_states:
+            return
+        # round 9's instrumentation with this round's fitness: is the baseline still below the download?
+        n = self.mirror.n_states
+        both = np.stack([truth_tables(self.best_rows[None], reflex=self.config.reflex)[0], self.base_table])
+        fit = spec_fitness(evaluate_tables(both, self.mirror, self.config.distance_rule), n) - self.penalty_of(both, n)
+        self.base_log["baseline_below_penalised"] += int(fit[1] < fit[0])
 
 
 def table(path: Path) -> str:
