@@ -209,15 +209,16 @@ class Round9(Round8):
 
 def table(path: Path, reference: Path | None = None) -> str:
     """The screening table: per seed, the median, and against the ``default`` row (no setting, no
-    parameter: today's defaults; of ``reference`` when given, a later round's reuse of this
-    round's rows) on the seeds both ran: how many lifetimes were shorter and the geometric mean
+    parameter: today's defaults; also those of ``reference`` when given, for a later round's reuse
+    of this round's rows) on the seeds both ran: how many lifetimes were shorter and the geometric mean
     of the per-seed ratios (a run out of budget counts as the budget)."""
     rows = rows_by_variant(path)
 
     def value(r):
         return r["interactions"] if r["targets"] >= 64 else r["budget"]
 
-    ref = {r["seed"]: r for r in (rows_by_variant(reference) if reference else rows).get("default", [])}
+    ref = {r["seed"]: r for r in rows_by_variant(reference).get("default", [])} if reference else {}
+    ref.update({r["seed"]: r for r in rows.get("default", [])})
     out = ["| variant | per seed (seed: interactions to 64, or targets @ budget) | median | against the defaults: shorter, ratio | failures | CPU-s |",
            "|---|---|---|---|---|---|"]
     for key, rs in rows.items():
