@@ -6,6 +6,7 @@ round 9 (a loop and a crash weighted by the robot's own outcomes), made cheap an
     python experiments/online_round10.py likely 1-8                 # round 9's likely (now cheaper)
     python experiments/online_round10.py likely 1-8 --param cycles=3
     python experiments/online_round10.py likely 1-8 --param vote=1
+    python experiments/online_round10.py likely 1-8 --param cycles=3 --param replace=1
     python experiments/online_round10.py crashfreq 1-8
     python experiments/online_round10.py --table build/experiments/round10.jsonl   # against round 9's defaults
 
@@ -21,7 +22,9 @@ host side, changes of SPEC section 7's fitness measured in the reference backend
   their per-motion factors (``likely_cycles``), so a generation costs a gather and a product over
   (P, cycles). ``vote`` = 1: round 9's ``crashvote`` model as well (a crash entry of a pair that
   went through in at least ``safe_share`` of its executions holds its latest non-crash outcome
-  for the phase). ``crashfreq`` = 1: the crash term as below;
+  for the phase). ``replace`` = 1: the likely cycles replace the SPEC's loop term (its count of
+  the one-outcome model's loops is given back) instead of being subtracted on top of it.
+  ``crashfreq`` = 1: the crash term as below;
 - variant ``crashfreq``: the SPEC crash term #{s in S : the entry of (s, T(s)) is a crash} becomes
   the expected crashes, the sum over s in S of the crash share of (s, T(s)) in the robot's
   executions of it (``w_crashfreq`` = 0.5, the SPEC weight, over N); the model (and so the traces
@@ -48,7 +51,7 @@ from ga.truth_table import truth_tables  # noqa: E402
 DEFAULT_OUT = Path("build/experiments/round10.jsonl")
 REFERENCE = Path("build/experiments/round9.jsonl")  # its ``default`` rows: today's defaults
 VARIANTS = ("default", "likely", "crashfreq")
-R10_PARAMS = {"cycles": 2, "vote": 0, "crashfreq": 0, "w_crashfreq": 0.5}
+R10_PARAMS = {"cycles": 2, "replace": 0, "vote": 0, "crashfreq": 0, "w_crashfreq": 0.5}
 DEFAULT_PARAMS = {**R9_PARAMS, **R10_PARAMS}
 
 
@@ -123,6 +126,9 @@ class Round10(Round9):
             pen += self.likely_penalty(tables, n)  # round 9's 2-cycles, to the bit
             for states, factors in self.cycles():
                 pen += float(prm["w_likely"]) * cycle_odds(tables, states, factors) / n
+            if prm["replace"]:  # the likely cycles instead of the SPEC's one-outcome loops, not on top
+                loops = evaluate_tables(tables, self.mirror, self.config.distance_rule).loops
+                pen -= float(prm["w_likely"]) * loops / n
             if prm["vote"]:
                 pen += self.vote_penalty(tables, n)
         if self.variant == "crashfreq" or prm["crashfreq"]:

@@ -228,7 +228,8 @@ def test_online_round10_runs_each_variant(tmp_path, capsys):
     round9, round10 = _script("online_round9"), _script("online_round10")
     out = tmp_path / "r10.jsonl"
     runs_of = (["likely"], ["likely", "--param", "cycles=3"], ["likely", "--param", "vote=1"],
-               ["likely", "--param", "crashfreq=1"], ["crashfreq"])
+               ["likely", "--param", "crashfreq=1"], ["crashfreq"],
+               ["likely", "--param", "cycles=3", "--param", "replace=1"])
     for argv in runs_of:
         assert round10.main([argv[0], "1", "--budget", "150", "--out", str(out), *argv[1:]]) == 0
     runs = [json.loads(line) for line in out.read_text().splitlines()]
