@@ -285,3 +285,10 @@ def test_online_round10_cycles_on_a_small_model():
     states, factors = round10.likely_cycles(shares, [1, 2], 3)
     assert states.tolist() == [[1, 2, 3], [2, 3, 1]]  # 1 -> 2 -> 3 -> 1 from each obstacle start
     assert np.allclose(round10.cycle_odds(tables, states, factors), [2 * 0.5 * 0.25 * 1.0, 0.0])
+
+
+def test_online_round10_terms_prints_the_fitness_gap_by_term(capsys):
+    terms = _script("online_round10_terms")
+    assert terms.main(["1", "150"]) == 0
+    out = capsys.readouterr().out
+    assert "fitness gap: distance term" in out and "untried obstacle entries" in out
