@@ -67,11 +67,13 @@ DEFAULT_PARAMS = {**R8_PARAMS, **R9_PARAMS}
 TWO_IF = ("", "surprise")
 
 
-def two_cycle_odds(tables: np.ndarray, outcomes: np.ndarray, states: np.ndarray) -> np.ndarray:
+def two_cycle_odds(tables: np.ndarray, outcomes: np.ndarray, states: np.ndarray,
+                   back: np.ndarray | None = None) -> np.ndarray:
     """(P, len(states)): for each controller (truth tables (P, 256)) and each of ``states``, the
     probability of going s -> s2 -> s with s2 != s when each (state, motion) goes to one of its
     kept ``outcomes`` (256, 8, H; -1 = none) with their frequencies. A (state, motion) with no
-    kept outcome adds nothing."""
+    kept outcome adds nothing. ``back``: ``back_shares(outcomes)``, computed here if not given
+    (round 10: it replaces a (P, len(states), H, H) gather, with the same values to the bit)."""
     pop = tables.shape[0]
     rows = np.arange(pop)[:, None, None]
     kept = (outcomes >= 0).sum(axis=2)  # (256, 8)
@@ -80,10 +82,18 @@ def two_cycle_odds(tables: np.ndarray, outcomes: np.ndarray, states: np.ndarray)
     away = (o1 >= 0) & (o1 != states[None, :, None])
     s2 = np.where(o1 >= 0, o1, 0)
     a2 = tables[rows, s2]  # (P, n, H)
-    o2 = outcomes[s2, a2]  # (P, n, H, H)
-    n2 = kept[s2, a2]  # (P, n, H)
-    back = (o2 == states[None, :, None, None]).sum(axis=3) / np.maximum(n2, 1)
-    return (away * back).sum(axis=2) / np.maximum(n1, 1)
+    if back is None:
+        back = back_shares(outcomes)
+    return (away * back[s2, a2, states[None, :, None]]).sum(axis=2) / np.maximum(n1, 1)
+
+
+def back_shares(outcomes: np.ndarray) -> np.ndarray:
+    """(256, 8, 256): the share of each next state among the kept ``outcomes`` of each
+    (state, motion) (0 where none kept)."""
+    kept = (outcomes >= 0).sum(axis=2)
+    cells = (np.arange(N_STATES * N_MOTIONS) * N_STATES).reshape(N_STATES, N_MOTIONS, 1)
+    counts = np.bincount((cells + outcomes)[outcomes >= 0], minlength=N_STATES * N_MOTIONS * N_STATES)
+    return counts.reshape(N_STATES, N_MOTIONS, N_STATES) / np.maximum(kept, 1)[:, :, None]
 
 
 class Round9(Round8):
@@ -98,7 +108,7 @@ class Round9(Round8):
             raise ValueError(f"--param two_if must be one of {TWO_IF!r}, got {self.params['two_if']!r}")
         if self.params["two_if"] == "surprise":
             self.detectors = [self._surprise_cycles() if isinstance(d, Cycles) else d for d in self.detectors]
-        self._outcomes_at = self._voted_at = -1
+        self._outcomes_at = self._voted_at = self._back_at = -1
         self.tally = np.zeros((N_STATES, N_MOTIONS, 2), dtype=np.int64)  # (s, a): crashes, not
 
     def _surprise_cycles(self) -> AdaptiveCycles:
@@ -123,6 +133,12 @@ class Round9(Round8):
             self._outcomes, self._outcomes_at = out, self.interactions
         return self._outcomes
 
+    def back_shares(self) -> np.ndarray:
+        """``back_shares`` of the kept outcomes, once per interaction count."""
+        if self._back_at != self.interactions:
+            self._back, self._back_at = back_shares(self.outcomes()), self.interactions
+        return self._back
+
     def voted_model(self):
         """The model a ``crashvote`` phase sees: the board's, except that a crash entry whose pair
         went through without a crash in at least ``safe_share`` of its executions holds its
@@ -136,18 +152,24 @@ class Round9(Round8):
             self._voted, self._voted_at = m, self.interactions
         return self._voted
 
+    def vote_penalty(self, tables: np.ndarray, n: int) -> np.ndarray:
+        """The SPEC fitness on the board's model minus that on the voted model (``crashvote``)."""
+        rule = self.config.distance_rule
+        return (spec_fitness(evaluate_tables(tables, self.mirror, rule), n)
+                - spec_fitness(evaluate_tables(tables, self.voted_model(), rule), n))
+
     def penalty(self, pop: np.ndarray, n: int) -> np.ndarray:
         if self.variant == "crashvote":  # the SPEC fitness on the voted model instead of the board's
-            tables = truth_tables(pop, reflex=self.config.reflex)
-            rule = self.config.distance_rule
-            return (spec_fitness(evaluate_tables(tables, self.mirror, rule), n)
-                    - spec_fitness(evaluate_tables(tables, self.voted_model(), rule), n))
+            return self.vote_penalty(truth_tables(pop, reflex=self.config.reflex), n)
         if self.variant != "likely":
             return super().penalty(pop, n)
-        tables = truth_tables(pop, reflex=self.config.reflex).astype(np.int64)
+        return self.likely_penalty(truth_tables(pop, reflex=self.config.reflex), n)
+
+    def likely_penalty(self, tables: np.ndarray, n: int) -> np.ndarray:
+        """``w_likely`` / N times the 2-cycle odds summed over the obstacle states of S."""
         states = self.mirror.states
         states = states[(states & OBSTACLE_MASK) != 0].astype(np.int64)
-        odds = two_cycle_odds(tables, self.outcomes(), states)
+        odds = two_cycle_odds(tables.astype(np.int64), self.outcomes(), states, self.back_shares())
         return float(self.params["w_likely"]) * odds.sum(axis=1) / n
 
     def learn(self, reason, steps, state, motion, detector=""):
@@ -185,16 +207,18 @@ class Round9(Round8):
                 "crash_entries": entries}
 
 
-def table(path: Path) -> str:
+def table(path: Path, reference: Path | None = None) -> str:
     """The screening table: per seed, the median, and against the ``default`` row (no setting, no
-    parameter: today's defaults) on the seeds both ran: how many lifetimes were shorter and the
-    geometric mean of the per-seed ratios (a run out of budget counts as the budget)."""
+    parameter: today's defaults; also those of ``reference`` when given, for a later round's reuse
+    of this round's rows) on the seeds both ran: how many lifetimes were shorter and the geometric mean
+    of the per-seed ratios (a run out of budget counts as the budget)."""
     rows = rows_by_variant(path)
 
     def value(r):
         return r["interactions"] if r["targets"] >= 64 else r["budget"]
 
-    ref = {r["seed"]: r for r in rows.get("default", [])}
+    ref = {r["seed"]: r for r in rows_by_variant(reference).get("default", [])} if reference else {}
+    ref.update({r["seed"]: r for r in rows.get("default", [])})
     out = ["| variant | per seed (seed: interactions to 64, or targets @ budget) | median | against the defaults: shorter, ratio | failures | CPU-s |",
            "|---|---|---|---|---|---|"]
     for key, rs in rows.items():

@@ -220,3 +220,75 @@ def test_online_round9_two_cycle_odds_on_a_small_model():
     tables[1, 2] = 5  # the second controller leaves 2 by a motion never tried
     odds = round9.two_cycle_odds(tables, outcomes, np.array([1, 2]))
     assert np.allclose(odds, [[0.5 * 0.75, 0.75 * 0.5], [0.0, 0.0]])
+
+
+def test_online_round10_runs_each_variant(tmp_path, capsys):
+    """Round 10's harness: ``likely`` with its 3-cycles, ``vote`` and ``crashfreq`` parameters, and
+    ``crashfreq``, run a smoke lifetime; ``likely`` alone is round 9's (same lifetime)."""
+    round9, round10 = _script("online_round9"), _script("online_round10")
+    out = tmp_path / "r10.jsonl"
+    runs_of = (["likely"], ["likely", "--param", "cycles=3"], ["likely", "--param", "vote=1"],
+               ["likely", "--param", "crashfreq=1"], ["crashfreq"],
+               ["likely", "--param", "cycles=3", "--param", "replace=1"])
+    for argv in runs_of:
+        assert round10.main([argv[0], "1", "--budget", "150", "--out", str(out), *argv[1:]]) == 0
+    runs = [json.loads(line) for line in out.read_text().splitlines()]
+    assert len(runs) == len(runs_of) and all(150 <= r["interactions"] <= 160 for r in runs)
+    assert round9.main(["likely", "1", "--budget", "150", "--out", str(tmp_path / "r9.jsonl")]) == 0
+    r9 = json.loads((tmp_path / "r9.jsonl").read_text())
+    same = ("interactions", "targets", "phases", "generations", "legs", "steps", "failure_classes")
+    assert [r9[k] for k in same] == [runs[0][k] for k in same]
+    capsys.readouterr()
+    assert round10.main(["--table", str(out)]) == 0
+    assert "| likely cycles=3 | 1: **" in capsys.readouterr().out
+
+
+def test_online_round9_two_cycle_odds_is_the_4d_gather():
+    """Round 9's ``two_cycle_odds`` (a per-phase table of outcome shares since round 10) gives the
+    values of its first form (a (P, n, H, H) gather of the kept outcomes), to the bit."""
+    import numpy as np
+
+    round9 = _script("online_round9")
+    rng = np.random.default_rng(0)
+    outcomes = np.full((256, 8, 8), -1, dtype=np.int64)
+    for s in rng.integers(0, 40, 150):
+        k = int(rng.integers(1, 9))
+        outcomes[s, rng.integers(8), :k] = rng.integers(0, 40, k)
+    tables = rng.integers(0, 8, (50, 256))
+    states = np.unique(rng.integers(1, 40, 25))
+    rows = np.arange(50)[:, None, None]
+    kept = (outcomes >= 0).sum(axis=2)
+    o1 = outcomes[states[None, :], tables[:, states]]
+    n1 = kept[states[None, :], tables[:, states]]
+    s2 = np.where(o1 >= 0, o1, 0)
+    o2, n2 = outcomes[s2, tables[rows, s2]], kept[s2, tables[rows, s2]]
+    back = (o2 == states[None, :, None, None]).sum(axis=3) / np.maximum(n2, 1)
+    first = (((o1 >= 0) & (o1 != states[None, :, None])) * back).sum(axis=2) / np.maximum(n1, 1)
+    assert np.array_equal(round9.two_cycle_odds(tables, outcomes, states), first)
+
+
+def test_online_round10_cycles_on_a_small_model():
+    import numpy as np
+
+    round9, round10 = _script("online_round9"), _script("online_round10")
+    outcomes = np.full((256, 8, 4), -1, dtype=np.int64)
+    outcomes[1, 0, :2] = [2, 1]  # 1 -0-> 2 half the time
+    outcomes[2, 0, :4] = [1, 1, 1, 3]  # 2 -0-> 1 three times in four, 2 -0-> 3 once
+    outcomes[3, 0, :1] = [1]
+    shares = round9.back_shares(outcomes)
+    tables = np.zeros((2, 256), dtype=np.int64)
+    tables[1, 2] = 5  # the second controller leaves 2 by a motion never tried
+    states, factors = round10.likely_cycles(shares, [1, 2], 2)
+    assert states.tolist() == [[1, 2], [2, 1]]  # the 2-cycles, as round 9's odds count them
+    assert np.allclose(round10.cycle_odds(tables, states, factors),
+                       round9.two_cycle_odds(tables, outcomes, np.array([1, 2])).sum(axis=1))
+    states, factors = round10.likely_cycles(shares, [1, 2], 3)
+    assert states.tolist() == [[1, 2, 3], [2, 3, 1]]  # 1 -> 2 -> 3 -> 1 from each obstacle start
+    assert np.allclose(round10.cycle_odds(tables, states, factors), [2 * 0.5 * 0.25 * 1.0, 0.0])
+
+
+def test_online_round10_terms_prints_the_fitness_gap_by_term(capsys):
+    terms = _script("online_round10_terms")
+    assert terms.main(["1", "150"]) == 0
+    out = capsys.readouterr().out
+    assert "fitness gap: distance term" in out and "untried obstacle entries" in out
