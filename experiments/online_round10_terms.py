@@ -46,8 +46,8 @@ class Terms(Round10):
         c = evaluate_tables(both, m, self.config.distance_rule)
         s = m.states.astype(np.int64)
         obstacle = s[(s & OBSTACLE_MASK) != 0]
-        odds2 = two_cycle_odds(both.astype(np.int64), self.outcomes(), obstacle, self.back_shares()).sum(axis=1)
         shares = self.back_shares()
+        odds2 = two_cycle_odds(both.astype(np.int64), self.outcomes(), obstacle, shares).sum(axis=1)
         odds3 = cycle_odds(both, *likely_cycles(shares, obstacle, 3))
         expected = self.crash_shares()[s[None, :], both[:, s]].sum(axis=1)
         untried = (~m.valid[obstacle[None, :], both[:, obstacle]]).sum(axis=1)
