@@ -292,3 +292,19 @@ def test_online_round10_terms_prints_the_fitness_gap_by_term(capsys):
     assert terms.main(["1", "150"]) == 0
     out = capsys.readouterr().out
     assert "fitness gap: distance term" in out and "untried obstacle entries" in out
+
+
+def test_online_detector_stops_counts_the_false_alarms_of_a_controller_that_never_fails(capsys):
+    stops = _script("online_detector_stops")
+    from cosim.online import OnlineConfig
+
+    run, found = stops.baseline_lifetime(OnlineConfig(seed=1, n_targets=6))
+    assert run.targets == 6 and len(run.phases) == sum(found.values()) > 0
+    assert set(found) == {"loop:cycles"}  # the one-round cycle stop is what fires
+    run, found = stops.baseline_lifetime(OnlineConfig(seed=1, n_targets=6, loop_cycles=0))
+    assert "loop:cycles" not in found
+    assert stops.main(["--seeds", "1", "--set", "n_targets=2", "--cycles"]) == 0
+    total = json.loads(capsys.readouterr().out.splitlines()[-1])
+    assert total["seeds"] == "1" and "cycles" in total
+    assert stops.main(["--seeds", "x"]) == 2
+    assert capsys.readouterr().err.startswith("error: ")
