@@ -20,9 +20,12 @@ accumulates when every visited state earns its credit; ``trace_distance`` is tha
   ``obstacle_any`` = 1 and s has an obstacle bit (any known safe motion near an obstacle, turns
   in place included, earns the full step);
 - the entry is unknown (trace stop (i)): ``untried`` x that same credit (the SPEC: 0);
-- a crash: 0 (the SPEC).
+- a crash: 0 (the SPEC);
+- ``away`` = 1: in an obstacle state, a known entry earns its credit only when its next state has
+  fewer obstacle bits than s (the motion takes the robot away from the obstacle); an untried
+  entry is credited as above.
 
-With ``untried`` = 0, ``obstacle_any`` = 0 and ``w_distance`` = 0.1 the fitness is the SPEC's to
+With ``untried`` = 0, ``obstacle_any`` = 0, ``away`` = 0 and ``w_distance`` = 0.1 the fitness is the SPEC's to
 the bit (the host's correction is exactly 0), so the lifetime is ``default``'s.
 """
 
@@ -47,33 +50,44 @@ from ga.world_model import WorldModel  # noqa: E402
 DEFAULT_OUT = Path("build/experiments/round11.jsonl")
 REFERENCE = Path("build/experiments/round9.jsonl")  # its ``default`` rows (seeds 1-16): today's defaults
 VARIANTS = (*R10_VARIANTS, "distance")
-R11_PARAMS = {"untried": 0.0, "obstacle_any": 0, "w_distance": W_DISTANCE}
+R11_PARAMS = {"untried": 0.0, "obstacle_any": 0, "w_distance": W_DISTANCE, "away": 0}
 DEFAULT_PARAMS = {**R10_PARAMS, **R11_PARAMS}
 
 
-def credits(model: WorldModel, rule: str, untried: float = 0.0, obstacle_any: bool = False) -> np.ndarray:
+def obstacle_bits(states) -> np.ndarray:
+    """The number of obstacle bits set in each of ``states``."""
+    bits = np.asarray(states, dtype=np.int64) & OBSTACLE_MASK
+    return sum((bits >> i) & 1 for i in range(OBSTACLE_MASK.bit_length()))
+
+
+def credits(model: WorldModel, rule: str, untried: float = 0.0, obstacle_any: bool = False,
+            away: bool = False) -> np.ndarray:
     """(256, 8) float: the distance credit of each (state, motion) entry of ``model`` (module
     docstring); ``rule`` is SPEC section 7's dist[a] (``ga.motions.DISTANCE_RULES``)."""
     dist = np.broadcast_to(motion_distances(rule).astype(np.float64), (N_STATES, len(motion_distances(rule))))
+    obstacle = (np.arange(N_STATES) & OBSTACLE_MASK) != 0
     if obstacle_any:
-        obstacle = (np.arange(N_STATES) & OBSTACLE_MASK) != 0
         dist = np.where(obstacle[:, None], float(MAX_MOTION_DISTANCE_MM), dist)
     known_safe = model.valid & ~model.crash
+    if away:
+        fewer = obstacle_bits(model.next_state) < obstacle_bits(np.arange(N_STATES))[:, None]
+        known_safe = known_safe & (fewer | ~obstacle[:, None])
     return np.where(known_safe, dist, np.where(model.valid, 0.0, float(untried) * dist))
 
 
 def credited_distance(tables: np.ndarray, model: WorldModel, rule: str, untried: float = 0.0,
-                      obstacle_any: bool = False) -> np.ndarray:
+                      obstacle_any: bool = False, away: bool = False) -> np.ndarray:
     """(P,): D of each controller (truth tables (P, 256)): the credits of (s, T(s)) over S."""
     s = model.states.astype(np.int64)
-    return credits(model, rule, untried, obstacle_any)[s[None, :], np.asarray(tables)[:, s]].sum(axis=1)
+    return credits(model, rule, untried, obstacle_any, away)[s[None, :], np.asarray(tables)[:, s]].sum(axis=1)
 
 
-def trace_distance(table, model: WorldModel, rule: str, untried: float = 0.0, obstacle_any: bool = False) -> float:
+def trace_distance(table, model: WorldModel, rule: str, untried: float = 0.0, obstacle_any: bool = False,
+                   away: bool = False) -> float:
     """D of one controller (a 256-entry truth table) by SPEC section 7's pseudo-code, each visited
     state earning its credit where the SPEC adds dist[a] (and at stop (i)): the form a trace
     evaluator (the HDL's) would take; equal to ``credited_distance``."""
-    credit = credits(model, rule, untried, obstacle_any)
+    credit = credits(model, rule, untried, obstacle_any, away)
     valid, crash, nxt = model.valid, model.crash, model.next_state
     tested: set[int] = set()
     total = 0.0
@@ -101,17 +115,17 @@ def trace_distance(table, model: WorldModel, rule: str, untried: float = 0.0, ob
 class Round11(Round10):
     """Round 10's lifetime with this round's distance term."""
 
-    def distance_params(self) -> tuple[float, bool, float]:
+    def distance_params(self) -> tuple[float, bool, bool, float]:
         prm = self.params
-        return float(prm["untried"]), bool(prm["obstacle_any"]), float(prm["w_distance"])
+        return float(prm["untried"]), bool(prm["obstacle_any"]), bool(prm["away"]), float(prm["w_distance"])
 
     def penalty_of(self, tables: np.ndarray, n: int) -> np.ndarray:
         if self.variant != "distance":
             return super().penalty_of(tables, n)
-        untried, obstacle_any, w = self.distance_params()
+        untried, obstacle_any, away, w = self.distance_params()
         rule = self.config.distance_rule
         spec = credited_distance(tables, self.mirror, rule)
-        revised = credited_distance(tables, self.mirror, rule, untried, obstacle_any)
+        revised = credited_distance(tables, self.mirror, rule, untried, obstacle_any, away)
         # the SPEC term given back, the revised one taken: exactly 0 when the rule is the SPEC's
         return (W_DISTANCE * spec - w * revised) / (n * MAX_MOTION_DISTANCE_MM)
 

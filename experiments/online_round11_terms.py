@@ -25,11 +25,14 @@ from ga.evaluator import MAX_MOTION_DISTANCE_MM, W_CRASHES, W_DISTANCE, W_LOOPS,
 from ga.motions import OBSTACLE_MASK  # noqa: E402
 from ga.truth_table import truth_tables  # noqa: E402
 
-# (name, untried, obstacle_any, w_distance): the SPEC first.
-RULES = (("SPEC", 0.0, False, W_DISTANCE), ("untried=1", 1.0, False, W_DISTANCE),
-         ("untried=0.5", 0.5, False, W_DISTANCE), ("obstacle_any=1", 0.0, True, W_DISTANCE),
-         ("obstacle_any=1 untried=0.5", 0.5, True, W_DISTANCE), ("obstacle_any=1 untried=1", 1.0, True, W_DISTANCE),
-         ("w_distance=0.02", 0.0, False, 0.02), ("w_distance=0", 0.0, False, 0.0))
+# (name, untried, obstacle_any, away, w_distance): the SPEC first.
+RULES = (("SPEC", 0.0, False, False, W_DISTANCE), ("untried=1", 1.0, False, False, W_DISTANCE),
+         ("untried=0.5", 0.5, False, False, W_DISTANCE), ("obstacle_any=1", 0.0, True, False, W_DISTANCE),
+         ("obstacle_any=1 untried=0.5", 0.5, True, False, W_DISTANCE),
+         ("obstacle_any=1 untried=1", 1.0, True, False, W_DISTANCE),
+         ("away=1", 0.0, False, True, W_DISTANCE), ("away=1 obstacle_any=1", 0.0, True, True, W_DISTANCE),
+         ("w_distance=0.2", 0.0, False, False, 0.2),
+         ("w_distance=0.02", 0.0, False, False, 0.02), ("w_distance=0", 0.0, False, False, 0.0))
 
 
 class Terms(Round11):
@@ -52,8 +55,8 @@ class Terms(Round11):
         crash_gap = W_CRASHES * (c.crashes[1] - c.crashes[0]) / n
         loop_gap = W_LOOPS * (c.loops[1] - c.loops[0]) / n
         rows = []
-        for _, untried, obstacle_any, w in RULES:
-            d = credited_distance(both, m, rule, untried, obstacle_any)
+        for _, untried, obstacle_any, away, w in RULES:
+            d = credited_distance(both, m, rule, untried, obstacle_any, away)
             rows.append([d[0], d[1], crash_gap + loop_gap + w * (d[0] - d[1]) / (n * MAX_MOTION_DISTANCE_MM)])
         self.by_rule.append(np.array(rows))
         s = m.states.astype(np.int64)

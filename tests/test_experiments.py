@@ -310,9 +310,10 @@ def test_online_round11_distance_credit_trace_form_is_the_vectorised_form():
     for _ in range(200):
         model.observe(int(rng.choice(pool)), int(rng.integers(8)), int(rng.choice(pool)), rng.random() < 0.1)
     tables = rng.integers(0, 8, (20, 256))
-    for untried, obstacle_any in ((0.0, False), (1.0, False), (0.5, True)):
-        vec = round11.credited_distance(tables, model, "forward", untried, obstacle_any)
-        assert vec.tolist() == [round11.trace_distance(t, model, "forward", untried, obstacle_any) for t in tables]
+    for untried, obstacle_any, away in ((0.0, False, False), (1.0, False, False), (0.5, True, False), (0.5, True, True)):
+        vec = round11.credited_distance(tables, model, "forward", untried, obstacle_any, away)
+        assert vec.tolist() == [round11.trace_distance(t, model, "forward", untried, obstacle_any, away)
+                                for t in tables]
     assert round11.credited_distance(tables, model, "forward").tolist() == evaluate_tables(
         tables, model, "forward").distance.tolist()
     assert (round11.credited_distance(tables, model, "forward", 1.0) > evaluate_tables(
