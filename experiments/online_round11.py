@@ -48,7 +48,8 @@ from ga.motions import MAX_MOTION_DISTANCE_MM, N_STATES, OBSTACLE_MASK, motion_d
 from ga.world_model import WorldModel  # noqa: E402
 
 DEFAULT_OUT = Path("build/experiments/round11.jsonl")
-REFERENCE = Path("build/experiments/round9.jsonl")  # its ``default`` rows (seeds 1-16): today's defaults
+# their ``default`` rows: today's defaults (round 9's: seeds 1-16, round 10's: 17-24)
+REFERENCES = (Path("build/experiments/round9.jsonl"), Path("build/experiments/round10.jsonl"))
 VARIANTS = (*R10_VARIANTS, "distance")
 R11_PARAMS = {"untried": 0.0, "obstacle_any": 0, "w_distance": W_DISTANCE, "away": 0}
 DEFAULT_PARAMS = {**R10_PARAMS, **R11_PARAMS}
@@ -138,9 +139,9 @@ class Round11(Round10):
 
 
 def table(path: Path) -> str:
-    """Round 9's screening table, against today's defaults (round 9's ``default`` rows, seeds 1-16,
-    and this file's own ``default`` rows, e.g. the held-out seeds)."""
-    return round9_table(path, reference=REFERENCE if REFERENCE.exists() else None)
+    """Round 9's screening table, against today's defaults (the ``default`` rows of REFERENCES and
+    this file's own, e.g. the held-out seeds)."""
+    return round9_table(path, reference=tuple(p for p in REFERENCES if p.exists()))
 
 
 def main(argv=None) -> int:
