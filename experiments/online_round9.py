@@ -207,17 +207,21 @@ class Round9(Round8):
                 "crash_entries": entries}
 
 
-def table(path: Path, reference: Path | None = None) -> str:
+def table(path: Path, reference: Path | tuple[Path, ...] | None = None, seeds=None) -> str:
     """The screening table: per seed, the median, and against the ``default`` row (no setting, no
-    parameter: today's defaults; also those of ``reference`` when given, for a later round's reuse
-    of this round's rows) on the seeds both ran: how many lifetimes were shorter and the geometric mean
-    of the per-seed ratios (a run out of budget counts as the budget)."""
-    rows = rows_by_variant(path)
+    parameter: today's defaults; also those of ``reference`` when given, one file or several, for a
+    later round's reuse of earlier rounds' rows) on the seeds both ran: how many lifetimes were
+    shorter and the geometric mean of the per-seed ratios (a run out of budget counts as the budget).
+    ``seeds``: only the rows of the seeds it holds (e.g. the held-out ones)."""
+    rows = {key: kept for key, rs in rows_by_variant(path).items()
+            if (kept := [r for r in rs if seeds is None or r["seed"] in seeds])}
 
     def value(r):
         return r["interactions"] if r["targets"] >= 64 else r["budget"]
 
-    ref = {r["seed"]: r for r in rows_by_variant(reference).get("default", [])} if reference else {}
+    ref = {}
+    for p in (reference,) if isinstance(reference, Path) else reference or ():
+        ref.update({r["seed"]: r for r in rows_by_variant(p).get("default", [])})
     ref.update({r["seed"]: r for r in rows.get("default", [])})
     out = ["| variant | per seed (seed: interactions to 64, or targets @ budget) | median | against the defaults: shorter, ratio | failures | CPU-s |",
            "|---|---|---|---|---|---|"]

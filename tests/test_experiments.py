@@ -308,3 +308,49 @@ def test_online_detector_stops_counts_the_false_alarms_of_a_controller_that_neve
     assert total["seeds"] == "1" and "cycles" in total
     assert stops.main(["--seeds", "x"]) == 2
     assert capsys.readouterr().err.startswith("error: ")
+
+
+def test_online_round11_distance_credit_trace_form_is_the_vectorised_form():
+    """Round 11's credited distance: the trace form (the pseudo-code, each visited state earning its
+    credit) equals the per-state sum, and with the SPEC's parameters both are SPEC section 7's
+    distance."""
+    import numpy as np
+
+    from ga.evaluator import evaluate_tables
+    from ga.world_model import WorldModel
+
+    round11 = _script("online_round11")
+    rng = np.random.default_rng(3)
+    model = WorldModel()
+    pool = rng.choice(256, 40, replace=False)  # free-space and obstacle states
+    for _ in range(200):
+        model.observe(int(rng.choice(pool)), int(rng.integers(8)), int(rng.choice(pool)), rng.random() < 0.1)
+    tables = rng.integers(0, 8, (20, 256))
+    for untried, obstacle_any, away in ((0.0, False, False), (1.0, False, False), (0.5, True, False), (0.5, True, True)):
+        vec = round11.credited_distance(tables, model, "forward", untried, obstacle_any, away)
+        assert vec.tolist() == [round11.trace_distance(t, model, "forward", untried, obstacle_any, away)
+                                for t in tables]
+    assert round11.credited_distance(tables, model, "forward").tolist() == evaluate_tables(
+        tables, model, "forward").distance.tolist()
+    assert (round11.credited_distance(tables, model, "forward", 1.0) > evaluate_tables(
+        tables, model, "forward").distance).any()  # an untried forward motion earns now
+
+
+def test_online_round11_runs_the_distance_rules(tmp_path, capsys):
+    """Round 11's ``distance`` with the SPEC's parameters is the default lifetime; each revised rule
+    runs a smoke lifetime and the terms instrument prints a row per rule."""
+    round11 = _script("online_round11")
+    out = tmp_path / "r11.jsonl"
+    runs_of = (["default"], ["distance"], ["distance", "--param", "untried=1"],
+               ["distance", "--param", "obstacle_any=1", "--param", "w_distance=0.02"])
+    for argv in runs_of:
+        assert round11.main([argv[0], "1", "--budget", "150", "--out", str(out), *argv[1:]]) == 0
+    runs = [json.loads(line) for line in out.read_text().splitlines()]
+    assert len(runs) == len(runs_of) and all(150 <= r["interactions"] <= 160 for r in runs)
+    same = ("interactions", "targets", "phases", "generations", "legs", "steps", "failure_classes")
+    assert [runs[0][k] for k in same] == [runs[1][k] for k in same]
+    capsys.readouterr()
+    assert round11.main(["--table", str(out)]) == 0
+    assert "| distance untried=1 | 1: **" in capsys.readouterr().out
+    assert _script("online_round11_terms").main(["1", "150", "distance", "untried=1"]) == 0
+    assert "| obstacle_any=1 untried=0.5 |" in capsys.readouterr().out
