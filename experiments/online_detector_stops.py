@@ -6,15 +6,22 @@ detector on this controller.
 
     python experiments/online_detector_stops.py [--seeds 1-8] [--set field=value ...] [--cycles]
     python experiments/online_detector_stops.py --seeds 1-8 --set loop_cycles=2
+    python experiments/online_detector_stops.py --seeds 1-8 --pose-deg 1 --set loop_radius_mm=20 --learn
 
 Prints one JSON line a seed (interactions to 64 targets, stops by detector) and a total line.
 ``--cycles``: the total line also lists the motion sequences of the cycle stops (the most common
 first) and their odometry displacements, in 10 mm bins.
+
+``--pose-deg TOL`` (measured and dropped, docs/online.md round 11): a cycle stop also needs the
+round's commanded net rotation within TOL degrees of 0 (mod 360), i.e. the robot back in its pose,
+not only its place. ``--learn``: the usual learning lifetimes (``--budget``, 20,000) instead of
+the baseline's, one JSON line a seed.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 from collections import Counter
@@ -22,9 +29,10 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+import cosim.failures  # noqa: E402
 from cosim.online import OnlineConfig, make_run  # noqa: E402
 from experiments.online_round7 import parse_kv  # noqa: E402
-from ga.motions import Motion  # noqa: E402
+from ga.motions import MOTION_ROTATION_DEG, Motion  # noqa: E402
 from sim_world.baseline import baseline_table  # noqa: E402
 
 SHORT = {m: "".join(w[0] for w in m.name.split("_")) for m in Motion}  # F, B, TL, TR, FL, ...
@@ -35,10 +43,36 @@ def parse_seeds(text: str) -> range:
     return range(int(first), int(last or first) + 1)
 
 
-def baseline_lifetime(config: OnlineConfig, cycles: Counter | None = None) -> tuple[object, Counter]:
+class PoseCycles(cosim.failures.Cycles):
+    """A cycle stop only when the round's commanded net rotation is within ``tol_deg`` of 0."""
+
+    tol_deg = 1.0
+
+    def observe(self, track) -> bool:
+        if not super().observe(track):
+            return False
+        net = sum(float(MOTION_ROTATION_DEG[a]) for _, a in self.cycle) % 360.0
+        if min(net, 360.0 - net) <= self.tol_deg:
+            return True
+        self.cycle = []
+        return False
+
+
+def with_pose_cycles(run, tol_deg: float):
+    """Swap ``run``'s cycle detector for a PoseCycles with the same k and radius."""
+    for i, d in enumerate(run.detectors):
+        if isinstance(d, cosim.failures.Cycles):
+            run.detectors[i] = PoseCycles(d.k, d.radius_mm)
+            run.detectors[i].tol_deg = tol_deg
+    return run
+
+
+def baseline_lifetime(config: OnlineConfig, cycles: Counter | None = None,
+                      pose_deg: float | None = None) -> tuple[object, Counter]:
     """One lifetime of ``config`` driven by the baseline, learning off: (run, stops by detector)."""
     table = baseline_table()
-    run = make_run(config, "reference")
+    run = with_pose_cycles(make_run(config, "reference"), pose_deg) if pose_deg is not None else \
+        make_run(config, "reference")
     run.controller.motion = lambda s: int(table[s])
     run.started = True  # no random first controller
     stops: Counter = Counter()
@@ -63,6 +97,9 @@ def main(argv=None) -> int:
     ap.add_argument("--set", action="append", default=[], metavar="FIELD=VALUE",
                     help="an OnlineConfig field (JSON value), e.g. loop_cycles=2")
     ap.add_argument("--cycles", action="store_true", help="list the cycle stops' motions")
+    ap.add_argument("--pose-deg", type=float, help="cycle stops only back in pose (net rotation within this)")
+    ap.add_argument("--learn", action="store_true", help="learning lifetimes, not the baseline's")
+    ap.add_argument("--budget", type=int, default=20_000, help="interactions of a learning lifetime at most")
     args = ap.parse_args(argv)
     try:
         seeds = parse_seeds(args.seeds)
@@ -71,14 +108,25 @@ def main(argv=None) -> int:
     except (ValueError, TypeError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
+    if args.learn:
+        for config in configs:
+            config = dataclasses.replace(config, max_interactions=args.budget)
+            run = make_run(config, "reference")
+            if args.pose_deg is not None:
+                with_pose_cycles(run, args.pose_deg)
+            run.run()
+            print(json.dumps({"seed": config.seed, "settings": settings, "pose_deg": args.pose_deg,
+                              "targets": run.targets, "interactions": run.interactions,
+                              "phases": len(run.phases)}), flush=True)
+        return 0
     total: Counter = Counter()
     cycles: Counter | None = Counter() if args.cycles else None
     for config in configs:
-        run, stops = baseline_lifetime(config, cycles)
+        run, stops = baseline_lifetime(config, cycles, args.pose_deg)
         total.update(stops)
         print(json.dumps({"seed": config.seed, "settings": settings, "targets": run.targets,
                           "interactions": run.interactions, "stops": dict(stops)}), flush=True)
-    line = {"seeds": args.seeds, "settings": settings, "stops": dict(total),
+    line = {"seeds": args.seeds, "settings": settings, "pose_deg": args.pose_deg, "stops": dict(total),
             "stops_per_lifetime": round(sum(total.values()) / len(configs), 1)}
     if cycles is not None:
         line["cycles"] = dict(cycles.most_common())

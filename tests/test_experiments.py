@@ -298,9 +298,9 @@ def test_online_detector_stops_counts_the_false_alarms_of_a_controller_that_neve
     stops = _script("online_detector_stops")
     from cosim.online import OnlineConfig
 
-    run, found = stops.baseline_lifetime(OnlineConfig(seed=1, n_targets=6))
-    assert run.targets == 6 and len(run.phases) == sum(found.values()) > 0
-    assert set(found) == {"loop:cycles"}  # the one-round cycle stop is what fires
+    run, found_default = stops.baseline_lifetime(OnlineConfig(seed=1, n_targets=6))
+    assert run.targets == 6 and len(run.phases) == sum(found_default.values()) > 0
+    assert set(found_default) == {"loop:cycles"}  # the one-round cycle stop is what fires
     run, found = stops.baseline_lifetime(OnlineConfig(seed=1, n_targets=6, loop_cycles=0))
     assert "loop:cycles" not in found
     assert stops.main(["--seeds", "1", "--set", "n_targets=2", "--cycles"]) == 0
@@ -308,6 +308,12 @@ def test_online_detector_stops_counts_the_false_alarms_of_a_controller_that_neve
     assert total["seeds"] == "1" and "cycles" in total
     assert stops.main(["--seeds", "x"]) == 2
     assert capsys.readouterr().err.startswith("error: ")
+    # the pose rule (dropped) fires less: a round of net rotation 22.5 degrees is not a loop
+    run, posed = stops.baseline_lifetime(OnlineConfig(seed=1, n_targets=6), pose_deg=1.0)
+    assert run.targets == 6 and 0 < posed["loop:cycles"] < sum(found_default.values())
+    assert stops.main(["--seeds", "1", "--learn", "--budget", "150", "--pose-deg", "1"]) == 0
+    line = json.loads(capsys.readouterr().out)
+    assert line["pose_deg"] == 1.0 and line["interactions"] in range(150, 152)
 
 
 def test_online_round11_distance_credit_trace_form_is_the_vectorised_form():
