@@ -81,7 +81,7 @@ def reference_figures(rng) -> dict:
 
 
 def hardware_figures(rng) -> dict:
-    from hdl.evaluator_ehw import simulate_population
+    from hdl.evaluator_sim import simulate_population
 
     per_state, per_state_seq, worst_margin = [], [], None
     for n in HDL_MODEL_SIZES:

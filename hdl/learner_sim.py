@@ -12,7 +12,7 @@ class LearnerSimHost:
     """The host side of the learner's ports in Amaranth's simulator (testbench context ``ctx``)."""
 
     def __init__(self, ctx, dut: Learner):
-        from hdl.evaluator_ehw import EvaluatorSimHost
+        from hdl.evaluator_sim import EvaluatorSimHost
 
         self.ctx, self.dut = ctx, dut
         self.model_host = EvaluatorSimHost(ctx, dut)  # the same model/state ports and ready

@@ -18,7 +18,8 @@ from amaranth.sim import Simulator
 
 from ga.evaluator import evaluate_population
 from ga.world_model import WorldModel
-from hdl.evaluator_ehw import RAM_DEPTH, EvaluatorEHW, EvaluatorSimHost as SimHost
+from hdl.evaluator_ehw import RAM_DEPTH, EvaluatorEHW
+from hdl.evaluator_sim import EvaluatorSimHost as SimHost
 from ga.genome import N_ROWS
 from hdl.ports import ModelEntry, ModelWriteSignature, RowWriteSignature, write_rows
 from test_evaluator_cases import cases, constant_rows, random_model, specific_rows
