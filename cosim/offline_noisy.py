@@ -64,6 +64,8 @@ class NoisyStage:
     max_generations: int = 100  # the stage's cap: then the best by record is the result
     race: int = 0  # seeds of the champion/challenger race (0: the generation's best is the elite)
     budget: int = 0  # the stage's interactions: it ends once it has spent this many (0: no limit)
+    from_start: bool = False  # the stage from generation 0: no noise-free stage (round 5)
+    noise_scale: float = 1.0  # the stage's noise: DEFAULT_NOISE with every magnitude times this (round 5)
 
     def __post_init__(self):
         for name, least in (("trials", 0), ("accept_runs", 1), ("max_failures", 1), ("max_generations", 1),
@@ -71,9 +73,28 @@ class NoisyStage:
             value = getattr(self, name)
             if not (isinstance(value, int) and value >= least):
                 raise ValueError(f"{name} must be an int >= {least}, got {value!r}")
+        if not self.noise_scale > 0:
+            raise ValueError(f"noise_scale must be > 0, got {self.noise_scale!r}")
 
     def to_dict(self) -> dict:
-        return asdict(self)
+        """The parameters; the round-5 ones only when set (older checkpoints keep their config)."""
+        d = asdict(self)
+        for name, default in (("from_start", False), ("noise_scale", 1.0)):
+            if d[name] == default:
+                del d[name]
+        return d
+
+
+def scaled_noise(scale: float = 1.0):
+    """DEFAULT_NOISE with its motor deviations and IR error probabilities times ``scale``."""
+    from sim_world.world import DEFAULT_NOISE, Noise
+
+    if scale == 1.0:
+        return DEFAULT_NOISE
+    n = DEFAULT_NOISE
+    return Noise(translation_sd=n.translation_sd * scale, rotation_sd_deg=n.rotation_sd_deg * scale,
+                 ir_false_negative=min(1.0, n.ir_false_negative * scale),
+                 ir_false_positive=min(1.0, n.ir_false_positive * scale))
 
 
 def noise_seeds(seed: int, generation: int, trials: int) -> list[list[int]]:
@@ -164,21 +185,23 @@ def load_arena_arg(arena: str):
     return load_arena(path if path.suffix == ".json" else arena)
 
 
-def _noisy_world(arena: str, seed=0):
-    """A world at DEFAULT_NOISE (an arena name or a .json path), one per arena and process."""
-    from sim_world.world import DEFAULT_NOISE, World
+def _noisy_world(arena: str, seed=0, noise_scale: float = 1.0):
+    """A world at DEFAULT_NOISE (times ``noise_scale``; an arena name or a .json path), one per
+    arena, scale and process."""
+    from sim_world.world import World
 
-    world = _NOISY_WORLDS.get(arena)
+    world = _NOISY_WORLDS.get((arena, noise_scale))
     if world is None:
-        world = _NOISY_WORLDS[arena] = World(load_arena_arg(arena), noise=DEFAULT_NOISE, seed=0)
+        world = _NOISY_WORLDS[arena, noise_scale] = World(load_arena_arg(arena), noise=scaled_noise(noise_scale),
+                                                          seed=0)
     world.reset(seed)
     world.reset_to_start()  # as World(..., seed=seed) does: the same noise stream as a new world
     return world
 
 
 def _drive_one(task) -> NoisyRun:
-    arena, max_leg_steps, n_targets, rows, noise_seed, max_failures = task
-    return drive_noisy(_noisy_world(arena), rows, max_leg_steps, n_targets, noise_seed, max_failures)
+    arena, max_leg_steps, n_targets, rows, noise_seed, max_failures, *scale = task
+    return drive_noisy(_noisy_world(arena, 0, *scale), rows, max_leg_steps, n_targets, noise_seed, max_failures)
 
 
 def noisy_generation(run_map, pop, stage: NoisyStage, records: Records, seed: int, generation: int,
@@ -197,7 +220,7 @@ def noisy_generation(run_map, pop, stage: NoisyStage, records: Records, seed: in
     unique = {}
     for key, rows in zip(keys, pop):
         unique.setdefault(key, rows)
-    tasks = [(arena, max_leg_steps, n_targets, rows, ns, stage.max_failures)
+    tasks = [(arena, max_leg_steps, n_targets, rows, ns, stage.max_failures, stage.noise_scale)
              for rows in unique.values() for ns in seeds]
     driven = run_map(_drive_one, tasks)
     k = stage.trials
@@ -215,7 +238,8 @@ def noisy_generation(run_map, pop, stage: NoisyStage, records: Records, seed: in
         # The champion (pop[0], the elite of the generation before) and the challenger race on
         # `race` more common seeds; the challenger takes over only if it is better there too.
         extra = [[NOISE_TAG, int(seed), int(generation), k + j] for j in range(stage.race)]
-        tasks = [(arena, max_leg_steps, n_targets, pop[i], ns, stage.max_failures) for i in (0, top) for ns in extra]
+        tasks = [(arena, max_leg_steps, n_targets, pop[i], ns, stage.max_failures, stage.noise_scale)
+                 for i in (0, top) for ns in extra]
         raced = run_map(_drive_one, tasks)
         champion, challenger = raced[:stage.race], raced[stage.race:]
         for key, rs in ((keys[0], champion), (keys[top], challenger)):
