@@ -474,6 +474,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
                         help="noisy stage: from generation 0, no noise-free stage (docs/offline.md round 5)")
     parser.add_argument("--noisy-scale", type=float, default=DEFAULT_NOISY.noise_scale,
                         help="noisy stage: DEFAULT_NOISE with every magnitude times this")
+    parser.add_argument("--noisy-leg-soft-steps", type=int, default=DEFAULT_NOISY.leg_soft_steps,
+                        help="noisy stage: a clean leg of n > S steps costs (n - S) / (limit - S) of a leg (0: none)")
     parser.add_argument("--transfer-trials", type=int, default=TRANSFER_TRIALS,
                         help="noisy-world runs of the final controller (noise seeds seed*1000+i)")
     parser.add_argument("--no-plots", action="store_true",

@@ -66,10 +66,11 @@ class NoisyStage:
     budget: int = 0  # the stage's interactions: it ends once it has spent this many (0: no limit)
     from_start: bool = False  # the stage from generation 0: no noise-free stage (round 5)
     noise_scale: float = 1.0  # the stage's noise: DEFAULT_NOISE with every magnitude times this (round 5)
+    leg_soft_steps: int = 0  # a clean leg longer than this costs part of a failed leg (0: none; round 5)
 
     def __post_init__(self):
         for name, least in (("trials", 0), ("accept_runs", 1), ("max_failures", 1), ("max_generations", 1),
-                            ("race", 0), ("budget", 0)):
+                            ("race", 0), ("budget", 0), ("leg_soft_steps", 0)):
             value = getattr(self, name)
             if not (isinstance(value, int) and value >= least):
                 raise ValueError(f"{name} must be an int >= {least}, got {value!r}")
@@ -79,7 +80,7 @@ class NoisyStage:
     def to_dict(self) -> dict:
         """The parameters; the round-5 ones only when set (older checkpoints keep their config)."""
         d = asdict(self)
-        for name, default in (("from_start", False), ("noise_scale", 1.0)):
+        for name, default in (("from_start", False), ("noise_scale", 1.0), ("leg_soft_steps", 0)):
             if d[name] == default:
                 del d[name]
         return d
@@ -120,14 +121,21 @@ class NoisyRun:
         return self.failed_legs == 0
 
 
-def drive_noisy(world, rows, max_leg_steps: int, n_targets: int, noise_seed, max_failures: int) -> NoisyRun:
-    """Drive the noisy ``world`` (re-seeded with ``noise_seed``) with one genome; score the run."""
+def drive_noisy(world, rows, max_leg_steps: int, n_targets: int, noise_seed, max_failures: int,
+                leg_soft_steps: int = 0) -> NoisyRun:
+    """Drive the noisy ``world`` (re-seeded with ``noise_seed``) with one genome; score the run.
+
+    ``leg_soft_steps`` S > 0: a clean leg of n > S steps costs (n - S) / (max_leg_steps - S) of a
+    clean leg (a leg at the limit is almost a time-out: the noise makes such legs time out on other
+    seeds)."""
     rows = validate_rows(rows)
     prefix = list(noise_seed)
     res = run_course(world, truth_tables(rows, reflex=True), max_leg_steps, n_targets=n_targets,
                      skip_failed_legs=True, max_failures=max_failures, leg_noise_seed=lambda leg: [*prefix, leg])
     fitness = model_free_fitness(res.targets_reached, res.final_distance_mm, world.arena.size_mm,
                                  res.steps, max_run_steps(max_leg_steps, n_targets))
+    if 0 < leg_soft_steps < max_leg_steps:
+        fitness -= sum(max(n - leg_soft_steps, 0) for n in res.leg_steps) / (max_leg_steps - leg_soft_steps)
     return NoisyRun(
         fitness=fitness, clean_legs=int(res.targets_reached), failed_legs=int(res.failed_legs),
         steps=int(res.steps), failure_state=int(res.failure_states[0]) if res.failure_states else None,
@@ -200,8 +208,10 @@ def _noisy_world(arena: str, seed=0, noise_scale: float = 1.0):
 
 
 def _drive_one(task) -> NoisyRun:
-    arena, max_leg_steps, n_targets, rows, noise_seed, max_failures, *scale = task
-    return drive_noisy(_noisy_world(arena, 0, *scale), rows, max_leg_steps, n_targets, noise_seed, max_failures)
+    arena, max_leg_steps, n_targets, rows, noise_seed, max_failures, *extra = task
+    scale, soft = extra if extra else (1.0, 0)
+    return drive_noisy(_noisy_world(arena, 0, scale), rows, max_leg_steps, n_targets, noise_seed, max_failures,
+                       soft)
 
 
 def noisy_generation(run_map, pop, stage: NoisyStage, records: Records, seed: int, generation: int,
@@ -220,7 +230,8 @@ def noisy_generation(run_map, pop, stage: NoisyStage, records: Records, seed: in
     unique = {}
     for key, rows in zip(keys, pop):
         unique.setdefault(key, rows)
-    tasks = [(arena, max_leg_steps, n_targets, rows, ns, stage.max_failures, stage.noise_scale)
+    tasks = [(arena, max_leg_steps, n_targets, rows, ns, stage.max_failures, stage.noise_scale,
+              stage.leg_soft_steps)
              for rows in unique.values() for ns in seeds]
     driven = run_map(_drive_one, tasks)
     k = stage.trials
@@ -238,7 +249,8 @@ def noisy_generation(run_map, pop, stage: NoisyStage, records: Records, seed: in
         # The champion (pop[0], the elite of the generation before) and the challenger race on
         # `race` more common seeds; the challenger takes over only if it is better there too.
         extra = [[NOISE_TAG, int(seed), int(generation), k + j] for j in range(stage.race)]
-        tasks = [(arena, max_leg_steps, n_targets, pop[i], ns, stage.max_failures, stage.noise_scale)
+        tasks = [(arena, max_leg_steps, n_targets, pop[i], ns, stage.max_failures, stage.noise_scale,
+              stage.leg_soft_steps)
                  for i in (0, top) for ns in extra]
         raced = run_map(_drive_one, tasks)
         champion, challenger = raced[:stage.race], raced[stage.race:]
