@@ -39,8 +39,8 @@ from typing import Callable
 import numpy as np
 
 from cosim.checkpoint import load_checkpoint, save_checkpoint
-from cosim.offline_noisy import (TRANSFER_TRIALS, NoisyStage, Records, load_arena_arg, noisy_generation,
-                                 transfer)
+from cosim.offline_noisy import (TRANSFER_TRIALS, NoisyStage, Records, final_race, load_arena_arg,
+                                 noisy_generation, table_key, transfer)
 from cosim.offline_report import plot_results, seeds_table  # noqa: F401 (seeds_table: the API)
 from cosim.runs import atomic_savefig, atomic_write_json
 from ga.evolution import GAConfig, GeneticAlgorithm
@@ -233,7 +233,7 @@ def _fresh_state(ga: GeneticAlgorithm) -> dict:
 
 def _fresh_noisy() -> dict:
     return {"records": {}, "from_generation": None, "interactions": 0, "noise_free_best": None,
-            "accepted": False}
+            "accepted": False, "elites": [], "final_race": None}
 
 
 def _best_entry(rows, ev: Evaluation, **extra) -> dict:
@@ -268,8 +268,33 @@ def _noisy_step(ga, pop, evaluator, noisy: NoisyStage, records: Records, state, 
     state["best"] = _best_entry(pop[i], best, noisy_fitness=float(fitness[i]), **record)
     if records.accepted(keys[i], noisy.accept_runs):
         state["noisy"]["accepted"] = True
+    elites = state["noisy"].setdefault("elites", [])
+    if noisy.final_race and (not elites or elites[-1][0] != keys[i]):  # the final race's candidates
+        elites.append([keys[i], hex_from_rows(pop[i])])
+        del elites[:-noisy.final_candidates]
     return best, {"stage": 2, "best_noisy_fitness": float(fitness[i]), **record,
                   "clean_runs": sum(r.clean for rs in runs for r in rs)}
+
+
+def _final_step(evaluator, noisy: NoisyStage, state, seed, arena, max_leg_steps, n_targets, config, ck_path):
+    """The noisy stage's final race (round 5): the last distinct elites on common seeds; the winner
+    becomes the result (counted; the winner is also driven once noise-free, for the summary)."""
+    candidates = [g for _, g in state["noisy"].get("elites", [])]
+    if not candidates:
+        return
+    winner, table, steps = final_race(evaluator.map, candidates, noisy, seed, arena, max_leg_steps, n_targets)
+    rows = rows_from_hex(candidates[winner])
+    driven = evaluator.simulated_steps
+    best = evaluator(rows[None, :])[0]
+    steps += best.steps
+    state["interactions"] += steps
+    state["noisy"]["interactions"] += steps
+    state["simulated_interactions"] += steps - best.steps + evaluator.simulated_steps - driven
+    record = Records(state["noisy"]["records"]).summary(table_key(rows))
+    state["best"] = _best_entry(rows, best, **record)
+    state["noisy"]["final_race"] = {"candidates": len(candidates), "winner": winner, "interactions": steps,
+                                    "failed_legs_clean_runs_mean_fitness": table}
+    save_checkpoint(ck_path, KIND, config, state)
 
 
 def run_offline(
@@ -384,6 +409,8 @@ def run_offline(
                                 interactions=state["interactions"], refresh=False)
                 if on_generation is not None:
                     on_generation(entry)
+            if noisy.final_race and state["stage"] == 2 and state["noisy"].get("final_race") is None:
+                _final_step(evaluator, noisy, state, seed, arena, max_leg_steps, n_targets, config, ck_path)
     finally:
         bar.close()
 
@@ -436,6 +463,7 @@ def _noisy_summary(state, generations: int) -> dict:
     return {"from_generation": first, "generations": 0 if first is None else generations - first + 1,
             "interactions": noisy["interactions"], "accepted": noisy["accepted"],
             "controllers_recorded": len(noisy["records"]),
+            **({"final_race": noisy["final_race"]} if noisy.get("final_race") else {}),
             **{k: best[k] for k in ("noisy_runs", "noisy_clean_runs", "noisy_mean_clean_legs") if k in best},
             "noise_free_best": noisy["noise_free_best"]}
 
@@ -476,6 +504,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
                         help="noisy stage: DEFAULT_NOISE with every magnitude times this")
     parser.add_argument("--noisy-leg-soft-steps", type=int, default=DEFAULT_NOISY.leg_soft_steps,
                         help="noisy stage: a clean leg of n > S steps costs (n - S) / (limit - S) of a leg (0: none)")
+    parser.add_argument("--noisy-final-race", type=int, default=DEFAULT_NOISY.final_race,
+                        help="noisy stage: at its end the last distinct elites drive this many common seeds "
+                             "each; the one with the fewest failed legs is the result (0: none)")
+    parser.add_argument("--noisy-final-candidates", type=int, default=DEFAULT_NOISY.final_candidates,
+                        help="noisy stage: how many of the last distinct elites the final race takes")
     parser.add_argument("--transfer-trials", type=int, default=TRANSFER_TRIALS,
                         help="noisy-world runs of the final controller (noise seeds seed*1000+i)")
     parser.add_argument("--no-plots", action="store_true",

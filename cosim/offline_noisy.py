@@ -67,10 +67,13 @@ class NoisyStage:
     from_start: bool = False  # the stage from generation 0: no noise-free stage (round 5)
     noise_scale: float = 1.0  # the stage's noise: DEFAULT_NOISE with every magnitude times this (round 5)
     leg_soft_steps: int = 0  # a clean leg longer than this costs part of a failed leg (0: none; round 5)
+    final_race: int = 0  # R: at the end the last distinct elites drive R common seeds each (0: none; round 5)
+    final_candidates: int = 8  # N: how many of the last distinct elites the final race takes
 
     def __post_init__(self):
         for name, least in (("trials", 0), ("accept_runs", 1), ("max_failures", 1), ("max_generations", 1),
-                            ("race", 0), ("budget", 0), ("leg_soft_steps", 0)):
+                            ("race", 0), ("budget", 0), ("leg_soft_steps", 0),
+                            ("final_race", 0), ("final_candidates", 1)):
             value = getattr(self, name)
             if not (isinstance(value, int) and value >= least):
                 raise ValueError(f"{name} must be an int >= {least}, got {value!r}")
@@ -80,7 +83,8 @@ class NoisyStage:
     def to_dict(self) -> dict:
         """The parameters; the round-5 ones only when set (older checkpoints keep their config)."""
         d = asdict(self)
-        for name, default in (("from_start", False), ("noise_scale", 1.0), ("leg_soft_steps", 0)):
+        for name, default in (("from_start", False), ("noise_scale", 1.0), ("leg_soft_steps", 0),
+                              ("final_race", 0), ("final_candidates", 8)):
             if d[name] == default:
                 del d[name]
         return d
@@ -262,6 +266,29 @@ def noisy_generation(run_map, pop, stage: NoisyStage, records: Records, seed: in
         if sum(r.fitness for r in challenger) <= sum(r.fitness for r in champion):
             fitness[0] = fitness[top] + 1e-9  # the champion stays the elite
     return keys, runs, fitness, failures, interactions, simulated
+
+
+FINAL_RACE_TAG = 1_000_000  # third word of the final race's noise seeds (generations stay below it)
+
+
+def final_race(run_map, genomes_hex: list[str], stage: NoisyStage, seed: int, arena: str, max_leg_steps: int,
+               n_targets: int):
+    """The final race (round 5): every candidate drives the same ``stage.final_race`` noise seeds
+    ``[NOISE_TAG, seed, FINAL_RACE_TAG, j]`` (graded runs, as in the stage). The winner has the
+    fewest failed legs over them, ties broken by the mean fitness, then by the later candidate.
+    Returns (index of the winner, per candidate [failed legs, clean runs, mean fitness],
+    interactions)."""
+    seeds = [[NOISE_TAG, int(seed), FINAL_RACE_TAG, j] for j in range(stage.final_race)]
+    tasks = [(arena, max_leg_steps, n_targets, rows_from_hex(g), ns, stage.max_failures, stage.noise_scale,
+              stage.leg_soft_steps) for g in genomes_hex for ns in seeds]
+    runs = run_map(_drive_one, tasks)
+    r = stage.final_race
+    table = []
+    for i in range(len(genomes_hex)):
+        rs = runs[i * r:(i + 1) * r]
+        table.append([sum(x.failed_legs for x in rs), sum(x.clean for x in rs), sum(x.fitness for x in rs) / r])
+    winner = min(range(len(table)), key=lambda i: (table[i][0], -table[i][2], -i))
+    return winner, table, sum(x.steps for x in runs)
 
 
 # -- Transfer to the "real" (noisy) world --------------------------------------------------------

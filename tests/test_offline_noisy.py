@@ -158,3 +158,39 @@ def test_the_budget_ends_the_noisy_stage(tmp_path):
 def test_table_key_is_the_truth_table():
     rows = np.zeros(50, dtype=np.uint32)
     assert table_key(rows) == table_key(rows.copy()) and len(table_key(rows)) == 16
+
+
+# -- Round 5: the stage from generation 0, the leg soft limit, scaled noise, the final race --------
+
+
+def test_the_stage_from_the_start_has_no_noise_free_stage_and_a_final_race_counted(tmp_path):
+    cfg = dict(SMALL, arena="one_obstacle", n_targets=4, max_leg_steps=80)
+    stage = NoisyStage(trials=1, race=2, accept_runs=1000, budget=6000, from_start=True, leg_soft_steps=40,
+                       final_race=2, final_candidates=3)
+    s = run_offline(1, generations_cap=50, out=tmp_path, noisy=stage, **cfg)
+    n = s["noisy_stage"]
+    history = json.loads((tmp_path / "history.json").read_text())
+    assert n["from_generation"] == 0 and all(e["stage"] == 2 for e in history)
+    assert s["config"]["noisy_stage"] == stage.to_dict() and stage.to_dict()["from_start"] is True
+    race = n["final_race"]
+    assert 1 <= race["candidates"] <= 3 and len(race["failed_legs_clean_runs_mean_fitness"]) == race["candidates"]
+    assert s["interactions"] == n["interactions"] == history[-1]["interactions"] + race["interactions"]
+    assert race["interactions"] > 0
+    # The defaults of the round-5 fields stay out of the config (older checkpoints still resume).
+    assert "from_start" not in NoisyStage(trials=1).to_dict()
+
+
+def test_a_long_clean_leg_costs_part_of_a_leg_and_scaled_noise_scales_every_magnitude():
+    from cosim.offline_noisy import scaled_noise
+
+    world = World("empty", noise=DEFAULT_NOISE)
+    rows = np.zeros(50, dtype=np.uint32)  # the reflex alone: it reaches the ball in the empty arena
+    plain = drive_noisy(world, rows, 150, 3, [1, 2], 4)
+    soft = drive_noisy(world, rows, 150, 3, [1, 2], 4, leg_soft_steps=10)
+    assert plain.clean_legs == soft.clean_legs == 3 and plain.steps == soft.steps > 30
+    assert soft.fitness < plain.fitness
+    assert drive_noisy(world, rows, 150, 3, [1, 2], 4, leg_soft_steps=1000).fitness == plain.fitness
+    assert scaled_noise(1.0) == DEFAULT_NOISE
+    assert scaled_noise(2.0).rotation_sd_deg == 2 * DEFAULT_NOISE.rotation_sd_deg
+    with pytest.raises(ValueError, match="noise_scale"):
+        NoisyStage(trials=1, noise_scale=0.0)
