@@ -504,6 +504,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
                         help="noisy stage: DEFAULT_NOISE with every magnitude times this")
     parser.add_argument("--noisy-leg-soft-steps", type=int, default=DEFAULT_NOISY.leg_soft_steps,
                         help="noisy stage: a clean leg of n > S steps costs (n - S) / (limit - S) of a leg (0: none)")
+    parser.add_argument("--noisy-near-miss-mm", type=float, default=DEFAULT_NOISY.near_miss_mm,
+                        help="noisy stage: a motion ending with the bumper closer than this to an obstacle "
+                             "costs --noisy-near-miss-cost of a leg (0: none)")
+    parser.add_argument("--noisy-near-miss-cost", type=float, default=DEFAULT_NOISY.near_miss_cost,
+                        help="noisy stage: the cost of one near miss, in clean legs")
     parser.add_argument("--noisy-final-race", type=int, default=DEFAULT_NOISY.final_race,
                         help="noisy stage: at its end the last distinct elites drive this many common seeds "
                              "each; the one with the fewest failed legs is the result (0: none)")

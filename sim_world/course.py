@@ -79,6 +79,7 @@ class CourseResult:
     trajectory: list[tuple[float, float, float, str]] = field(default_factory=list)
     failed_legs: int = 0  # legs ended by a crash or a time-out (only with skip_failed_legs)
     failure_states: list[int] = field(default_factory=list)  # the state each failed leg ended in
+    near_misses: int = 0  # motions that ended with the bumper closer than near_miss_mm to an obstacle
 
 
 def run_course(
@@ -92,6 +93,7 @@ def run_course(
     skip_failed_legs: bool = False,
     max_failures: int | None = None,
     leg_noise_seed=None,
+    near_miss_mm: float = 0.0,
 ) -> CourseResult:
     """Run the motion table ``table`` ((256,) ints, reflex already applied) through the course.
 
@@ -103,6 +105,8 @@ def run_course(
     0, 1, ...): the world's noise generator is re-seeded with its value before each leg's start
     pose is sensed, so a leg's noise does not depend on what earlier legs drew (common random
     numbers per leg: two controllers that drive a leg alike meet the same noise there).
+    ``near_miss_mm`` > 0: count the motions (crashed ones excluded) after which the bumper is
+    closer than this to an obstacle (``near_misses``; docs/offline.md round 5).
     """
     if max_leg_steps < 1:
         raise ValueError(f"max_leg_steps must be >= 1, got {max_leg_steps!r}")
@@ -146,6 +150,8 @@ def run_course(
             if record:
                 x, y, h = world.pose
                 traj.append((x, y, h, "crash" if out.crashed else ("target" if out.reached else "")))
+            if near_miss_mm and not out.crashed and world.bumper_clearance < near_miss_mm:
+                res.near_misses += 1
             if out.crashed:
                 res.crashes += 1
                 if skip_failed_legs:

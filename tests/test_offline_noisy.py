@@ -194,3 +194,16 @@ def test_a_long_clean_leg_costs_part_of_a_leg_and_scaled_noise_scales_every_magn
     assert scaled_noise(2.0).rotation_sd_deg == 2 * DEFAULT_NOISE.rotation_sd_deg
     with pytest.raises(ValueError, match="noise_scale"):
         NoisyStage(trials=1, noise_scale=0.0)
+
+
+def test_near_misses_count_motions_ending_close_to_an_obstacle_and_cost_fitness():
+    world = World("one_obstacle")
+    forward = _forward_table()
+    counts = [run_course(world, forward, 60, n_targets=3, skip_failed_legs=True, near_miss_mm=m).near_misses
+              for m in (0.0, 30.0, 300.0)]
+    assert counts[0] == 0 < counts[2] and counts[1] <= counts[2]
+    world = World("one_obstacle", noise=DEFAULT_NOISE)
+    plain = drive_noisy(world, np.zeros(50, dtype=np.uint32), 60, 3, [1, 2], 4)
+    near = drive_noisy(world, np.zeros(50, dtype=np.uint32), 60, 3, [1, 2], 4, near_miss_mm=300.0,
+                       near_miss_cost=0.5)
+    assert near.steps == plain.steps and near.fitness < plain.fitness
