@@ -110,12 +110,12 @@ def evaluate(world, rows, max_leg_steps: int, n_targets: int = N_TARGETS, reflex
 _WORLDS: dict = {}
 
 
-def _world(arena: str, crash_margin_mm: float = 0.0):
+def _world(arena: str):
     from sim_world.world import World
 
-    world = _WORLDS.get((arena, crash_margin_mm))
+    world = _WORLDS.get(arena)
     if world is None:
-        world = _WORLDS[arena, crash_margin_mm] = World(_load_arena(arena), crash_margin_mm=crash_margin_mm)
+        world = _WORLDS[arena] = World(_load_arena(arena))
     return world
 
 
@@ -123,18 +123,17 @@ _load_arena = load_arena_arg
 
 
 def _evaluate_one(task) -> Evaluation:
-    arena, max_leg_steps, n_targets, rows, crash_margin_mm = task
-    return evaluate(_world(arena, crash_margin_mm), rows, max_leg_steps, n_targets)
+    arena, max_leg_steps, n_targets, rows = task
+    return evaluate(_world(arena), rows, max_leg_steps, n_targets)
 
 
 class Evaluator:
     """Evaluates a population serially (``workers`` <= 1) or over a process pool, same result."""
 
     def __init__(self, arena: str, max_leg_steps: int, n_targets: int = N_TARGETS, workers: int = 1,
-                 cache_size: int = 4096, crash_margin_mm: float = 0.0):
+                 cache_size: int = 4096):
         self.cache_size = cache_size  # truth tables remembered (about 200 generations of 20)
         self.arena, self.max_leg_steps, self.n_targets = arena, max_leg_steps, n_targets
-        self.crash_margin_mm = float(crash_margin_mm)
         self.workers = max(int(workers), 1)
         self._pool = None
         self._cache: dict[bytes, Evaluation] = {}
@@ -158,8 +157,7 @@ class Evaluator:
         for key, rows in zip(keys, pop):
             if key not in self._cache and key not in todo:
                 todo[key] = rows
-        tasks = [(self.arena, self.max_leg_steps, self.n_targets, rows, self.crash_margin_mm)
-                 for rows in todo.values()]
+        tasks = [(self.arena, self.max_leg_steps, self.n_targets, rows) for rows in todo.values()]
         if self._pool is None:
             fresh = [_evaluate_one(t) for t in tasks]
         else:
@@ -199,7 +197,7 @@ def _arena_digest(arena: str) -> str:
 
 
 def run_config(seed: int, arena: str, max_leg_steps: int, n_targets: int, ga_config: GAConfig,
-               noisy: NoisyStage | None = None, crash_margin_mm: float = 0.0) -> dict:
+               noisy: NoisyStage | None = None) -> dict:
     """The parameters that define a run: a checkpoint resumes only under the same ones."""
     config = {
         "seed": int(seed),
@@ -211,8 +209,6 @@ def run_config(seed: int, arena: str, max_leg_steps: int, n_targets: int, ga_con
     }
     if noisy is not None and noisy.trials:
         config["noisy_stage"] = noisy.to_dict()
-    if crash_margin_mm:
-        config["crash_margin_mm"] = float(crash_margin_mm)
     return config
 
 
@@ -313,7 +309,6 @@ def run_offline(
     transfer_trials: int = TRANSFER_TRIALS,
     on_generation: Callable[[dict], None] | None = None,
     noisy: NoisyStage | None = None,
-    crash_margin_mm: float = 0.0,
 ) -> dict:
     """Run (or, with ``resume``, continue) the model-free experiment; return the summary dict.
 
@@ -327,7 +322,7 @@ def run_offline(
     out.mkdir(parents=True, exist_ok=True)
     ga_config = ga_config or default_ga_config()
     noisy = DEFAULT_NOISY if noisy is None else noisy
-    config = run_config(seed, arena, max_leg_steps, n_targets, ga_config, noisy, crash_margin_mm)
+    config = run_config(seed, arena, max_leg_steps, n_targets, ga_config, noisy)
     ck_path = out / "checkpoint.json"
     if resume and ck_path.exists():
         state = load_checkpoint(ck_path, KIND, config)
@@ -361,7 +356,7 @@ def run_offline(
     bar = tqdm(total=generations_cap, initial=min(ga.generation, generations_cap), disable=not progress,
                desc=f"model-free seed {seed}", unit="gen", dynamic_ncols=True)
     try:
-        with Evaluator(arena, max_leg_steps, n_targets, workers, crash_margin_mm=crash_margin_mm) as evaluator:
+        with Evaluator(arena, max_leg_steps, n_targets, workers) as evaluator:
             while not finished() and ga.generation < generations_cap:
                 pop = ga.ask()
                 if state["stage"] == 2:
@@ -494,10 +489,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
                         help="noisy stage: seeds of the champion/challenger race for the elite (0: none)")
     parser.add_argument("--noisy-budget", type=int, default=DEFAULT_NOISY.budget,
                         help="noisy stage: it ends once it has spent this many interactions (0: no limit)")
-    parser.add_argument("--crash-margin-mm", type=float, default=0.0,
-                        help="the evolution's noise-free world counts a translation that brings the bumper "
-                             "within this many mm of an obstacle (and closer than before) as a crash "
-                             "(docs/offline.md round 5; 0: the real bumper)")
     parser.add_argument("--noisy-from-start", action="store_true",
                         help="noisy stage: from generation 0, no noise-free stage (docs/offline.md round 5)")
     parser.add_argument("--noisy-scale", type=float, default=DEFAULT_NOISY.noise_scale,

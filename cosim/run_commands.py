@@ -222,7 +222,7 @@ def cmd_offline(args, extras: dict, sub=None) -> int:
     for name, least in (("generations_cap", 1), ("workers", 1), ("max_leg_steps", 1), ("seed", 0),
                         ("noisy_trials", 0), ("noisy_accept_runs", 1), ("noisy_max_failures", 1), ("noisy_max_generations", 1), ("noisy_race", 0), ("noisy_budget", 0), ("noisy_leg_soft_steps", 0),
                         ("noisy_final_race", 0), ("noisy_near_miss_mm", 0), ("noisy_near_miss_cost", 0), ("noisy_final_candidates", 1),
-                        ("transfer_trials", 0), ("crash_margin_mm", 0)):
+                        ("transfer_trials", 0)):
         if getattr(args, name) < least:
             raise UserError(f"--{name.replace('_', '-')} must be at least {least}, got {getattr(args, name)!r}")
     from sim_world.arena import load_arena
@@ -235,8 +235,7 @@ def cmd_offline(args, extras: dict, sub=None) -> int:
 
             load_checkpoint(out / "checkpoint.json", offline.KIND,
                             offline.run_config(args.seed, args.arena, args.max_leg_steps, offline.N_TARGETS,
-                                               offline.default_ga_config(), noisy_stage(args),
-                                               args.crash_margin_mm))
+                                               offline.default_ga_config(), noisy_stage(args)))
         options = {k: getattr(args, k) for k in _option_keys(sub, exclude=("table",))}
         write_config(out, {k: (str(v) if isinstance(v, Path) else v) for k, v in options.items()}, {}, "offline")
         run_offline_from_args(args, out)
@@ -281,7 +280,6 @@ def run_offline_from_args(args, out: Path) -> dict:
         args.seed, generations_cap=args.generations_cap, workers=args.workers, resume=args.resume,
         out=out, arena=args.arena, max_leg_steps=args.max_leg_steps, progress=not args.quiet,
         plots=not args.no_plots, noisy=noisy_stage(args), transfer_trials=args.transfer_trials,
-        crash_margin_mm=args.crash_margin_mm,
     )
     offline._WORLDS.clear()  # free the pymunk spaces now, not during interpreter shutdown
     keys = ("seed", "reached_all_targets", "targets_reached", "generations", "genetic_operations",

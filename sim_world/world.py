@@ -174,18 +174,11 @@ class World:
     """The simulated robot in an arena. Noise-free unless ``noise`` is given; seeded by ``seed``."""
 
     def __init__(self, arena: Arena | str | None = None, noise: Noise | None = None, faults=(), seed=None,
-                 cache: bool = True, crash_margin_mm: float = 0.0):
+                 cache: bool = True):
         if arena is None or isinstance(arena, str):
             arena = load_arena(arena or "default")
         self.arena = arena
         self.noise = None if noise is None or noise.is_zero else noise
-        if not crash_margin_mm >= 0:
-            raise ValueError(f"crash_margin_mm must be >= 0, got {crash_margin_mm!r}")
-        # A safety margin (the off-line method's evaluation world, docs/offline.md round 5): a
-        # translation also counts as a crash when it brings the bumper closer than this to an
-        # obstacle than it was (moving away or along at the same distance is allowed, so a pose
-        # that starts inside the margin is not a trap). 0: the real bumper only.
-        self.crash_margin_mm = float(crash_margin_mm)
         self.faults = tuple(faults)
         for f in self.faults:
             if not isinstance(f, Fault):
@@ -424,20 +417,6 @@ class World:
                 return True
         return False
 
-    def _enters_margin(self, x0: float, y0: float, x1: float, y1: float) -> bool:
-        """True when the swept disc comes closer than ``crash_margin_mm`` to an obstacle (bumper to
-        surface) and closer than it was at (x0, y0): sampled like `bumper_hits`."""
-        reach = ROBOT_RADIUS_MM + self.crash_margin_mm
-        d0 = self._nearest_query((x0, y0), reach)
-        limit = min(reach, reach if d0 is None else d0) - 1e-6
-        n = max(1, math.ceil(math.hypot(x1 - x0, y1 - y0) / BUMPER_SAMPLE_MM))
-        dx, dy = (x1 - x0) / n, (y1 - y0) / n
-        for i in range(1, n + 1):
-            d = self._nearest_query((x0 + i * dx, y0 + i * dy), reach)
-            if d is not None and d < limit:
-                return True
-        return False
-
     def step(self, motion: int) -> Step:
         """Execute one motion (one interaction) and sense the result."""
         if not 0 <= motion < N_MOTIONS:
@@ -455,11 +434,8 @@ class World:
         if t:
             x1, y1 = x0 + t * math.cos(hm), y0 + t * math.sin(hm)
             # Far from everything (clearance known from sensing) no bumper test is needed.
-            margin = self.crash_margin_mm
-            if self._clearance <= ROBOT_RADIUS_MM + margin + abs(t) + 1e-6:
+            if self._clearance <= ROBOT_RADIUS_MM + abs(t) + 1e-6:
                 crashed = self.bumper_hits(x0, y0, x1, y1)
-                if not crashed and margin:
-                    crashed = self._enters_margin(x0, y0, x1, y1)
         else:
             x1, y1 = x0, y0
         self.interactions += 1
