@@ -491,8 +491,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
                         help="noisy stage: it ends once it has spent this many interactions (0: no limit)")
     parser.add_argument("--noisy-from-start", action="store_true",
                         help="noisy stage: from generation 0, no noise-free stage (docs/offline.md round 5)")
-    parser.add_argument("--noisy-scale", type=float, default=DEFAULT_NOISY.noise_scale,
-                        help="noisy stage: DEFAULT_NOISE with every magnitude times this")
     parser.add_argument("--noisy-leg-soft-steps", type=int, default=DEFAULT_NOISY.leg_soft_steps,
                         help="noisy stage: a clean leg of n > S steps costs (n - S) / (limit - S) of a leg (0: none)")
     parser.add_argument("--noisy-near-miss-mm", type=float, default=DEFAULT_NOISY.near_miss_mm,

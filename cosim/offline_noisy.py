@@ -65,7 +65,6 @@ class NoisyStage:
     race: int = 0  # seeds of the champion/challenger race (0: the generation's best is the elite)
     budget: int = 0  # the stage's interactions: it ends once it has spent this many (0: no limit)
     from_start: bool = False  # the stage from generation 0: no noise-free stage (round 5)
-    noise_scale: float = 1.0  # the stage's noise: DEFAULT_NOISE with every magnitude times this (round 5)
     leg_soft_steps: int = 0  # a clean leg longer than this costs part of a failed leg (0: none; round 5)
     near_miss_mm: float = 0.0  # a motion ending with the bumper closer than this to an obstacle ...
     near_miss_cost: float = 0.1  # ... costs this much of a clean leg (round 5; 0 mm: none)
@@ -79,8 +78,6 @@ class NoisyStage:
             value = getattr(self, name)
             if not (isinstance(value, int) and value >= least):
                 raise ValueError(f"{name} must be an int >= {least}, got {value!r}")
-        if not self.noise_scale > 0:
-            raise ValueError(f"noise_scale must be > 0, got {self.noise_scale!r}")
         for name in ("near_miss_mm", "near_miss_cost"):
             if not getattr(self, name) >= 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
@@ -88,30 +85,12 @@ class NoisyStage:
     def to_dict(self) -> dict:
         """The parameters; the round-5 ones only when set (older checkpoints keep their config)."""
         d = asdict(self)
-        for name, default in (("from_start", False), ("noise_scale", 1.0), ("leg_soft_steps", 0),
+        for name, default in (("from_start", False), ("leg_soft_steps", 0),
                               ("near_miss_mm", 0.0), ("near_miss_cost", 0.1), ("final_race", 0),
                               ("final_candidates", 8)):
             if d[name] == default:
                 del d[name]
         return d
-
-
-def scaled_noise(scale: float = 1.0):
-    """DEFAULT_NOISE with its motor deviations and IR error probabilities times ``scale``."""
-    from sim_world.world import DEFAULT_NOISE, Noise
-
-    if scale == 1.0:
-        return DEFAULT_NOISE
-    n = DEFAULT_NOISE
-    return Noise(translation_sd=n.translation_sd * scale, rotation_sd_deg=n.rotation_sd_deg * scale,
-                 ir_false_negative=min(1.0, n.ir_false_negative * scale),
-                 ir_false_positive=min(1.0, n.ir_false_positive * scale))
-
-
-def noise_seeds(seed: int, generation: int, trials: int) -> list[list[int]]:
-    """The K noise seeds every individual of ``generation`` drives (numpy SeedSequence entropy);
-    leg j of run k is re-seeded with ``[*noise_seeds(...)[k], j]`` (`drive_noisy`)."""
-    return [[NOISE_TAG, int(seed), int(generation), k] for k in range(trials)]
 
 
 @dataclass(frozen=True)
@@ -207,15 +186,13 @@ def load_arena_arg(arena: str):
     return load_arena(path if path.suffix == ".json" else arena)
 
 
-def _noisy_world(arena: str, seed=0, noise_scale: float = 1.0):
-    """A world at DEFAULT_NOISE (times ``noise_scale``; an arena name or a .json path), one per
-    arena, scale and process."""
-    from sim_world.world import World
+def _noisy_world(arena: str, seed=0):
+    """A world at DEFAULT_NOISE (an arena name or a .json path), one per arena and process."""
+    from sim_world.world import DEFAULT_NOISE, World
 
-    world = _NOISY_WORLDS.get((arena, noise_scale))
+    world = _NOISY_WORLDS.get(arena)
     if world is None:
-        world = _NOISY_WORLDS[arena, noise_scale] = World(load_arena_arg(arena), noise=scaled_noise(noise_scale),
-                                                          seed=0)
+        world = _NOISY_WORLDS[arena] = World(load_arena_arg(arena), noise=DEFAULT_NOISE, seed=0)
     world.reset(seed)
     world.reset_to_start()  # as World(..., seed=seed) does: the same noise stream as a new world
     return world
@@ -223,8 +200,8 @@ def _noisy_world(arena: str, seed=0, noise_scale: float = 1.0):
 
 def _drive_one(task) -> NoisyRun:
     arena, max_leg_steps, n_targets, rows, noise_seed, max_failures, *extra = task
-    scale, soft, near_mm, near_cost = extra if extra else (1.0, 0, 0.0, 0.0)
-    return drive_noisy(_noisy_world(arena, 0, scale), rows, max_leg_steps, n_targets, noise_seed, max_failures,
+    soft, near_mm, near_cost = extra if extra else (0, 0.0, 0.0)
+    return drive_noisy(_noisy_world(arena), rows, max_leg_steps, n_targets, noise_seed, max_failures,
                        soft, near_mm, near_cost)
 
 
@@ -244,7 +221,7 @@ def noisy_generation(run_map, pop, stage: NoisyStage, records: Records, seed: in
     unique = {}
     for key, rows in zip(keys, pop):
         unique.setdefault(key, rows)
-    tasks = [(arena, max_leg_steps, n_targets, rows, ns, stage.max_failures, stage.noise_scale,
+    tasks = [(arena, max_leg_steps, n_targets, rows, ns, stage.max_failures,
               stage.leg_soft_steps, stage.near_miss_mm, stage.near_miss_cost)
              for rows in unique.values() for ns in seeds]
     driven = run_map(_drive_one, tasks)
@@ -263,7 +240,7 @@ def noisy_generation(run_map, pop, stage: NoisyStage, records: Records, seed: in
         # The champion (pop[0], the elite of the generation before) and the challenger race on
         # `race` more common seeds; the challenger takes over only if it is better there too.
         extra = [[NOISE_TAG, int(seed), int(generation), k + j] for j in range(stage.race)]
-        tasks = [(arena, max_leg_steps, n_targets, pop[i], ns, stage.max_failures, stage.noise_scale,
+        tasks = [(arena, max_leg_steps, n_targets, pop[i], ns, stage.max_failures,
               stage.leg_soft_steps, stage.near_miss_mm, stage.near_miss_cost)
                  for i in (0, top) for ns in extra]
         raced = run_map(_drive_one, tasks)
@@ -289,7 +266,7 @@ def final_race(run_map, genomes_hex: list[str], stage: NoisyStage, seed: int, ar
     Returns (index of the winner, per candidate [failed legs, clean runs, mean fitness],
     interactions)."""
     seeds = [[NOISE_TAG, int(seed), FINAL_RACE_TAG, j] for j in range(stage.final_race)]
-    tasks = [(arena, max_leg_steps, n_targets, rows_from_hex(g), ns, stage.max_failures, stage.noise_scale,
+    tasks = [(arena, max_leg_steps, n_targets, rows_from_hex(g), ns, stage.max_failures,
               stage.leg_soft_steps, stage.near_miss_mm, stage.near_miss_cost) for g in genomes_hex for ns in seeds]
     runs = run_map(_drive_one, tasks)
     r = stage.final_race

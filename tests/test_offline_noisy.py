@@ -180,9 +180,7 @@ def test_the_stage_from_the_start_has_no_noise_free_stage_and_a_final_race_count
     assert "from_start" not in NoisyStage(trials=1).to_dict()
 
 
-def test_a_long_clean_leg_costs_part_of_a_leg_and_scaled_noise_scales_every_magnitude():
-    from cosim.offline_noisy import scaled_noise
-
+def test_a_long_clean_leg_costs_part_of_a_leg():
     world = World("empty", noise=DEFAULT_NOISE)
     rows = np.zeros(50, dtype=np.uint32)  # the reflex alone: it reaches the ball in the empty arena
     plain = drive_noisy(world, rows, 150, 3, [1, 2], 4)
@@ -190,10 +188,8 @@ def test_a_long_clean_leg_costs_part_of_a_leg_and_scaled_noise_scales_every_magn
     assert plain.clean_legs == soft.clean_legs == 3 and plain.steps == soft.steps > 30
     assert soft.fitness < plain.fitness
     assert drive_noisy(world, rows, 150, 3, [1, 2], 4, leg_soft_steps=1000).fitness == plain.fitness
-    assert scaled_noise(1.0) == DEFAULT_NOISE
-    assert scaled_noise(2.0).rotation_sd_deg == 2 * DEFAULT_NOISE.rotation_sd_deg
-    with pytest.raises(ValueError, match="noise_scale"):
-        NoisyStage(trials=1, noise_scale=0.0)
+    with pytest.raises(ValueError, match="leg_soft_steps"):
+        NoisyStage(trials=1, leg_soft_steps=-1)
 
 
 def test_near_misses_count_motions_ending_close_to_an_obstacle_and_cost_fitness():
