@@ -93,6 +93,12 @@ class NoisyStage:
         return d
 
 
+def noise_seeds(seed: int, generation: int, trials: int) -> list[list[int]]:
+    """The K noise seeds every individual of ``generation`` drives (numpy SeedSequence entropy);
+    leg j of run k is re-seeded with ``[*noise_seeds(...)[k], j]`` (`drive_noisy`)."""
+    return [[NOISE_TAG, int(seed), int(generation), k] for k in range(trials)]
+
+
 @dataclass(frozen=True)
 class NoisyRun:
     """One controller's run through the noisy world, legs skipped on failure."""
