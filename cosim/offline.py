@@ -498,6 +498,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
                              "costs --noisy-near-miss-cost of a leg (0: none)")
     parser.add_argument("--noisy-near-miss-cost", type=float, default=DEFAULT_NOISY.near_miss_cost,
                         help="noisy stage: the cost of one near miss, in clean legs")
+    parser.add_argument("--noisy-back-cost", type=float, default=DEFAULT_NOISY.back_cost,
+                        help="noisy stage: a backward motion with an obstacle beside or behind costs this much of a leg")
     parser.add_argument("--noisy-final-race", type=int, default=DEFAULT_NOISY.final_race,
                         help="noisy stage: at its end the last distinct elites drive this many common seeds "
                              "each; the one with the fewest failed legs is the result (0: none)")

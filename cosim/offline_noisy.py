@@ -68,6 +68,7 @@ class NoisyStage:
     leg_soft_steps: int = 0  # a clean leg longer than this costs part of a failed leg (0: none; round 5)
     near_miss_mm: float = 0.0  # a motion ending with the bumper closer than this to an obstacle ...
     near_miss_cost: float = 0.1  # ... costs this much of a clean leg (round 5; 0 mm: none)
+    back_cost: float = 0.0  # a backward motion with an obstacle beside or behind costs this much of a leg
     final_race: int = 0  # R: at the end the last distinct elites drive R common seeds each (0: none; round 5)
     final_candidates: int = 8  # N: how many of the last distinct elites the final race takes
 
@@ -78,7 +79,7 @@ class NoisyStage:
             value = getattr(self, name)
             if not (isinstance(value, int) and value >= least):
                 raise ValueError(f"{name} must be an int >= {least}, got {value!r}")
-        for name in ("near_miss_mm", "near_miss_cost"):
+        for name in ("near_miss_mm", "near_miss_cost", "back_cost"):
             if not getattr(self, name) >= 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
 
@@ -86,7 +87,7 @@ class NoisyStage:
         """The parameters; the round-5 ones only when set (older checkpoints keep their config)."""
         d = asdict(self)
         for name, default in (("from_start", False), ("leg_soft_steps", 0),
-                              ("near_miss_mm", 0.0), ("near_miss_cost", 0.1), ("final_race", 0),
+                              ("near_miss_mm", 0.0), ("near_miss_cost", 0.1), ("back_cost", 0.0), ("final_race", 0),
                               ("final_candidates", 8)):
             if d[name] == default:
                 del d[name]
@@ -117,24 +118,27 @@ class NoisyRun:
 
 
 def drive_noisy(world, rows, max_leg_steps: int, n_targets: int, noise_seed, max_failures: int,
-                leg_soft_steps: int = 0, near_miss_mm: float = 0.0, near_miss_cost: float = 0.0) -> NoisyRun:
+                leg_soft_steps: int = 0, near_miss_mm: float = 0.0, near_miss_cost: float = 0.0,
+                back_cost: float = 0.0) -> NoisyRun:
     """Drive the noisy ``world`` (re-seeded with ``noise_seed``) with one genome; score the run.
 
     ``leg_soft_steps`` S > 0: a clean leg of n > S steps costs (n - S) / (max_leg_steps - S) of a
     clean leg (a leg at the limit is almost a time-out: the noise makes such legs time out on other
     seeds). ``near_miss_mm`` > 0: every motion that ends with the bumper closer than that to an
     obstacle costs ``near_miss_cost`` of a clean leg (the hand-written baseline never comes within
-    30 mm; the evolved controllers that crash under noise often do)."""
+    30 mm; the evolved controllers that crash under noise often do). ``back_cost``: every backward
+    motion with an obstacle beside or behind (x3, x4 or x5) costs that much (backing towards a seen
+    obstacle crashes into what the three rear rays miss)."""
     rows = validate_rows(rows)
     prefix = list(noise_seed)
     res = run_course(world, truth_tables(rows, reflex=True), max_leg_steps, n_targets=n_targets,
                      skip_failed_legs=True, max_failures=max_failures, leg_noise_seed=lambda leg: [*prefix, leg],
-                     near_miss_mm=near_miss_mm)
+                     near_miss_mm=near_miss_mm, count_backs=back_cost > 0)
     fitness = model_free_fitness(res.targets_reached, res.final_distance_mm, world.arena.size_mm,
                                  res.steps, max_run_steps(max_leg_steps, n_targets))
     if 0 < leg_soft_steps < max_leg_steps:
         fitness -= sum(max(n - leg_soft_steps, 0) for n in res.leg_steps) / (max_leg_steps - leg_soft_steps)
-    fitness -= near_miss_cost * res.near_misses
+    fitness -= near_miss_cost * res.near_misses + back_cost * res.obstacle_backs
     return NoisyRun(
         fitness=fitness, clean_legs=int(res.targets_reached), failed_legs=int(res.failed_legs),
         steps=int(res.steps), failure_state=int(res.failure_states[0]) if res.failure_states else None,
@@ -206,9 +210,9 @@ def _noisy_world(arena: str, seed=0):
 
 def _drive_one(task) -> NoisyRun:
     arena, max_leg_steps, n_targets, rows, noise_seed, max_failures, *extra = task
-    soft, near_mm, near_cost = extra if extra else (0, 0.0, 0.0)
+    soft, near_mm, near_cost, back_cost = extra if extra else (0, 0.0, 0.0, 0.0)
     return drive_noisy(_noisy_world(arena), rows, max_leg_steps, n_targets, noise_seed, max_failures,
-                       soft, near_mm, near_cost)
+                       soft, near_mm, near_cost, back_cost)
 
 
 def noisy_generation(run_map, pop, stage: NoisyStage, records: Records, seed: int, generation: int,
@@ -228,7 +232,8 @@ def noisy_generation(run_map, pop, stage: NoisyStage, records: Records, seed: in
     for key, rows in zip(keys, pop):
         unique.setdefault(key, rows)
     tasks = [(arena, max_leg_steps, n_targets, rows, ns, stage.max_failures,
-              stage.leg_soft_steps, stage.near_miss_mm, stage.near_miss_cost)
+              stage.leg_soft_steps, stage.near_miss_mm, stage.near_miss_cost,
+              stage.back_cost)
              for rows in unique.values() for ns in seeds]
     driven = run_map(_drive_one, tasks)
     k = stage.trials
@@ -247,7 +252,8 @@ def noisy_generation(run_map, pop, stage: NoisyStage, records: Records, seed: in
         # `race` more common seeds; the challenger takes over only if it is better there too.
         extra = [[NOISE_TAG, int(seed), int(generation), k + j] for j in range(stage.race)]
         tasks = [(arena, max_leg_steps, n_targets, pop[i], ns, stage.max_failures,
-              stage.leg_soft_steps, stage.near_miss_mm, stage.near_miss_cost)
+              stage.leg_soft_steps, stage.near_miss_mm, stage.near_miss_cost,
+              stage.back_cost)
                  for i in (0, top) for ns in extra]
         raced = run_map(_drive_one, tasks)
         champion, challenger = raced[:stage.race], raced[stage.race:]
@@ -273,7 +279,8 @@ def final_race(run_map, genomes_hex: list[str], stage: NoisyStage, seed: int, ar
     interactions)."""
     seeds = [[NOISE_TAG, int(seed), FINAL_RACE_TAG, j] for j in range(stage.final_race)]
     tasks = [(arena, max_leg_steps, n_targets, rows_from_hex(g), ns, stage.max_failures,
-              stage.leg_soft_steps, stage.near_miss_mm, stage.near_miss_cost) for g in genomes_hex for ns in seeds]
+              stage.leg_soft_steps, stage.near_miss_mm, stage.near_miss_cost,
+              stage.back_cost) for g in genomes_hex for ns in seeds]
     runs = run_map(_drive_one, tasks)
     r = stage.final_race
     table = []
