@@ -203,3 +203,21 @@ def test_near_misses_count_motions_ending_close_to_an_obstacle_and_cost_fitness(
     near = drive_noisy(world, np.zeros(50, dtype=np.uint32), 60, 3, [1, 2], 4, near_miss_mm=300.0,
                        near_miss_cost=0.5)
     assert near.steps == plain.steps and near.fitness < plain.fitness
+
+
+def test_backward_motions_beside_or_behind_an_obstacle_are_counted_and_cost_fitness():
+    from sim_world.baseline import baseline_table
+
+    world = World("one_obstacle")
+    backward = np.full(256, int(Motion.BACKWARD_RIGHT), dtype=np.uint8)
+    res = run_course(world, backward, 40, n_targets=2, skip_failed_legs=True, count_backs=True)
+    assert 0 < res.obstacle_backs <= res.steps
+    assert run_course(world, backward, 40, n_targets=2, skip_failed_legs=True).obstacle_backs == 0
+    # The hand-written baseline backs off only when the obstacle is ahead alone.
+    assert run_course(world, baseline_table(), 150, n_targets=4, count_backs=True).obstacle_backs == 0
+    rows = np.zeros(50, dtype=np.uint32)
+    rows[0] = 0b111 << 16  # one row with no literal fires everywhere: BACKWARD_RIGHT outside the reflex
+    noisy = World("one_obstacle", noise=DEFAULT_NOISE)
+    plain = drive_noisy(noisy, rows, 40, 2, [1, 2], 4)
+    costly = drive_noisy(noisy, rows, 40, 2, [1, 2], 4, back_cost=0.5)
+    assert costly.steps == plain.steps and costly.fitness < plain.fitness
