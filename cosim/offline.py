@@ -334,7 +334,7 @@ def run_offline(
         state = _fresh_state(ga)
         if noisy.trials and noisy.from_start:  # round 5: no noise-free stage
             state["stage"] = 2
-            state["noisy"]["from_generation"] = 0
+            state["noisy"]["from_generation"] = ga.generation + 1  # generations count from 1
     states = set(state["world_states"])
     transitions = {tuple(t) for t in state["transitions"]}
     records = Records(state["noisy"]["records"])

@@ -170,7 +170,7 @@ def test_the_stage_from_the_start_has_no_noise_free_stage_and_a_final_race_count
     s = run_offline(1, generations_cap=50, out=tmp_path, noisy=stage, **cfg)
     n = s["noisy_stage"]
     history = json.loads((tmp_path / "history.json").read_text())
-    assert n["from_generation"] == 0 and all(e["stage"] == 2 for e in history)
+    assert n["from_generation"] == 1 and n["generations"] == s["generations"] and all(e["stage"] == 2 for e in history)
     assert s["config"]["noisy_stage"] == stage.to_dict() and stage.to_dict()["from_start"] is True
     race = n["final_race"]
     assert 1 <= race["candidates"] <= 3 and len(race["failed_legs_clean_runs_mean_fitness"]) == race["candidates"]
