@@ -221,3 +221,17 @@ def test_backward_motions_beside_or_behind_an_obstacle_are_counted_and_cost_fitn
     plain = drive_noisy(noisy, rows, 40, 2, [1, 2], 4)
     costly = drive_noisy(noisy, rows, 40, 2, [1, 2], 4, back_cost=0.5)
     assert costly.steps == plain.steps and costly.fitness < plain.fitness
+
+
+def test_the_round5_config_file_names_only_offline_options():
+    import argparse
+    import tomllib
+    from pathlib import Path
+
+    from cosim import offline
+
+    dests = {a.dest for a in offline.add_arguments(argparse.ArgumentParser())._actions}
+    cfg = tomllib.loads((Path(__file__).parents[1] / "experiments/offline_round5.toml").read_text())
+    assert set(cfg) <= dests and cfg["noisy_from_start"] is True and cfg["noisy_trials"] == 1
+    NoisyStage(**{k[len("noisy_"):]: v for k, v in cfg.items() if k.startswith("noisy_")
+                  and k[len("noisy_"):] in NoisyStage.__dataclass_fields__})
