@@ -7,7 +7,8 @@ times, or at a generation cap. Then the best controller is "downloaded to the re
 drives the noisy world (`sim_world.world.DEFAULT_NOISE`) and we count the targets it reaches
 before its first crash (20 noise seeds). With ``noisy=NoisyStage(trials=K)`` (``--noisy-trials``,
 off by default) the GA goes on in the noisy world once the noise-free best reaches every target
-(`cosim.offline_noisy`, docs/offline.md round 3).
+(`cosim.offline_noisy`, docs/offline.md round 3), or from the first generation with
+``--noisy-from-start`` (round 5).
 
     python -m cosim.offline --seed 1 [--generations-cap G] [--workers W] [--resume]
                             [--out results/model_free] [--arena NAME] [--max-leg-steps N]

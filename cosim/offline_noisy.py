@@ -32,6 +32,14 @@ on, and from then on every individual drives the noisy world (`sim_world.world.D
   not asked of it: a loop there that the noise breaks costs the real robot nothing; the summary
   reports its noise-free targets.)
 
+Round 5 (docs/offline.md) adds, all off by default: the stage from the first generation
+(``from_start``: no noise-free stage); penalties in a run's fitness, in clean legs, on what fails
+under noise: a clean leg longer than ``leg_soft_steps``, a motion that ends with the bumper within
+``near_miss_mm`` of an obstacle (``near_miss_cost`` each), a backward motion with an obstacle
+beside or behind (``back_cost`` each); and a final race (``final_race`` R seeds for each of the last
+``final_candidates`` distinct elites; the fewest failed legs is the result).
+``experiments/offline_round5.toml`` holds the round's adopted values.
+
 Every motion of every noisy run is an interaction of the off-line method (issue 17's rule).
 """
 
