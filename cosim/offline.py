@@ -7,7 +7,8 @@ times, or at a generation cap. Then the best controller is "downloaded to the re
 drives the noisy world (`sim_world.world.DEFAULT_NOISE`) and we count the targets it reaches
 before its first crash (20 noise seeds). With ``noisy=NoisyStage(trials=K)`` (``--noisy-trials``,
 off by default) the GA goes on in the noisy world once the noise-free best reaches every target
-(`cosim.offline_noisy`, docs/offline.md round 3).
+(`cosim.offline_noisy`, docs/offline.md round 3), or from the first generation with
+``--noisy-from-start`` (round 5).
 
     python -m cosim.offline --seed 1 [--generations-cap G] [--workers W] [--resume]
                             [--out results/model_free] [--arena NAME] [--max-leg-steps N]
@@ -39,8 +40,8 @@ from typing import Callable
 import numpy as np
 
 from cosim.checkpoint import load_checkpoint, save_checkpoint
-from cosim.offline_noisy import (TRANSFER_TRIALS, NoisyStage, Records, load_arena_arg, noisy_generation,
-                                 transfer)
+from cosim.offline_noisy import (TRANSFER_TRIALS, NoisyStage, Records, final_race, load_arena_arg,
+                                 noisy_generation, table_key, transfer)
 from cosim.offline_report import plot_results, seeds_table  # noqa: F401 (seeds_table: the API)
 from cosim.runs import atomic_savefig, atomic_write_json
 from ga.evolution import GAConfig, GeneticAlgorithm
@@ -229,7 +230,7 @@ def _fresh_state(ga: GeneticAlgorithm) -> dict:
 
 def _fresh_noisy() -> dict:
     return {"records": {}, "from_generation": None, "interactions": 0, "noise_free_best": None,
-            "accepted": False}
+            "accepted": False, "elites": [], "final_race": None}
 
 
 def _best_entry(rows, ev: Evaluation, **extra) -> dict:
@@ -264,8 +265,33 @@ def _noisy_step(ga, pop, evaluator, noisy: NoisyStage, records: Records, state, 
     state["best"] = _best_entry(pop[i], best, noisy_fitness=float(fitness[i]), **record)
     if records.accepted(keys[i], noisy.accept_runs):
         state["noisy"]["accepted"] = True
+    elites = state["noisy"].setdefault("elites", [])
+    if noisy.final_race and (not elites or elites[-1][0] != keys[i]):  # the final race's candidates
+        elites.append([keys[i], hex_from_rows(pop[i])])
+        del elites[:-noisy.final_candidates]
     return best, {"stage": 2, "best_noisy_fitness": float(fitness[i]), **record,
                   "clean_runs": sum(r.clean for rs in runs for r in rs)}
+
+
+def _final_step(evaluator, noisy: NoisyStage, state, seed, arena, max_leg_steps, n_targets, config, ck_path):
+    """The noisy stage's final race (round 5): the last distinct elites on common seeds; the winner
+    becomes the result (counted; the winner is also driven once noise-free, for the summary)."""
+    candidates = [g for _, g in state["noisy"].get("elites", [])]
+    if not candidates:
+        return
+    winner, table, steps = final_race(evaluator.map, candidates, noisy, seed, arena, max_leg_steps, n_targets)
+    rows = rows_from_hex(candidates[winner])
+    driven = evaluator.simulated_steps
+    best = evaluator(rows[None, :])[0]
+    steps += best.steps
+    state["interactions"] += steps
+    state["noisy"]["interactions"] += steps
+    state["simulated_interactions"] += steps - best.steps + evaluator.simulated_steps - driven
+    record = Records(state["noisy"]["records"]).summary(table_key(rows))
+    state["best"] = _best_entry(rows, best, **record)
+    state["noisy"]["final_race"] = {"candidates": len(candidates), "winner": winner, "interactions": steps,
+                                    "failed_legs_clean_runs_mean_fitness": table}
+    save_checkpoint(ck_path, KIND, config, state)
 
 
 def run_offline(
@@ -307,6 +333,9 @@ def run_offline(
     else:
         ga = GeneticAlgorithm(ga_config, np.random.default_rng(seed))
         state = _fresh_state(ga)
+        if noisy.trials and noisy.from_start:  # round 5: no noise-free stage
+            state["stage"] = 2
+            state["noisy"]["from_generation"] = ga.generation + 1  # generations count from 1
     states = set(state["world_states"])
     transitions = {tuple(t) for t in state["transitions"]}
     records = Records(state["noisy"]["records"])
@@ -376,6 +405,8 @@ def run_offline(
                                 interactions=state["interactions"], refresh=False)
                 if on_generation is not None:
                     on_generation(entry)
+            if noisy.final_race and state["stage"] == 2 and state["noisy"].get("final_race") is None:
+                _final_step(evaluator, noisy, state, seed, arena, max_leg_steps, n_targets, config, ck_path)
     finally:
         bar.close()
 
@@ -428,6 +459,7 @@ def _noisy_summary(state, generations: int) -> dict:
     return {"from_generation": first, "generations": 0 if first is None else generations - first + 1,
             "interactions": noisy["interactions"], "accepted": noisy["accepted"],
             "controllers_recorded": len(noisy["records"]),
+            **({"final_race": noisy["final_race"]} if noisy.get("final_race") else {}),
             **{k: best[k] for k in ("noisy_runs", "noisy_clean_runs", "noisy_mean_clean_legs") if k in best},
             "noise_free_best": noisy["noise_free_best"]}
 
@@ -458,6 +490,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
                         help="noisy stage: seeds of the champion/challenger race for the elite (0: none)")
     parser.add_argument("--noisy-budget", type=int, default=DEFAULT_NOISY.budget,
                         help="noisy stage: it ends once it has spent this many interactions (0: no limit)")
+    parser.add_argument("--noisy-from-start", action="store_true",
+                        help="noisy stage: from generation 0, no noise-free stage (docs/offline.md round 5)")
+    parser.add_argument("--noisy-leg-soft-steps", type=int, default=DEFAULT_NOISY.leg_soft_steps,
+                        help="noisy stage: a clean leg of n > S steps costs (n - S) / (limit - S) of a leg (0: none)")
+    parser.add_argument("--noisy-near-miss-mm", type=float, default=DEFAULT_NOISY.near_miss_mm,
+                        help="noisy stage: a motion ending with the bumper closer than this to an obstacle "
+                             "costs --noisy-near-miss-cost of a leg (0: none)")
+    parser.add_argument("--noisy-near-miss-cost", type=float, default=DEFAULT_NOISY.near_miss_cost,
+                        help="noisy stage: the cost of one near miss, in clean legs")
+    parser.add_argument("--noisy-back-cost", type=float, default=DEFAULT_NOISY.back_cost,
+                        help="noisy stage: a backward motion with an obstacle beside or behind costs this much of a leg")
+    parser.add_argument("--noisy-final-race", type=int, default=DEFAULT_NOISY.final_race,
+                        help="noisy stage: at its end the last distinct elites drive this many common seeds "
+                             "each; the one with the fewest failed legs is the result (0: none)")
+    parser.add_argument("--noisy-final-candidates", type=int, default=DEFAULT_NOISY.final_candidates,
+                        help="noisy stage: how many of the last distinct elites the final race takes")
     parser.add_argument("--transfer-trials", type=int, default=TRANSFER_TRIALS,
                         help="noisy-world runs of the final controller (noise seeds seed*1000+i)")
     parser.add_argument("--no-plots", action="store_true",

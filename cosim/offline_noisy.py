@@ -32,6 +32,14 @@ on, and from then on every individual drives the noisy world (`sim_world.world.D
   not asked of it: a loop there that the noise breaks costs the real robot nothing; the summary
   reports its noise-free targets.)
 
+Round 5 (docs/offline.md) adds, all off by default: the stage from the first generation
+(``from_start``: no noise-free stage); penalties in a run's fitness, in clean legs, on what fails
+under noise: a clean leg longer than ``leg_soft_steps``, a motion that ends with the bumper within
+``near_miss_mm`` of an obstacle (``near_miss_cost`` each), a backward motion with an obstacle
+beside or behind (``back_cost`` each); and a final race (``final_race`` R seeds for each of the last
+``final_candidates`` distinct elites; the fewest failed legs is the result).
+``experiments/offline_round5.toml`` holds the round's adopted values.
+
 Every motion of every noisy run is an interaction of the off-line method (issue 17's rule).
 """
 
@@ -64,16 +72,34 @@ class NoisyStage:
     max_generations: int = 100  # the stage's cap: then the best by record is the result
     race: int = 0  # seeds of the champion/challenger race (0: the generation's best is the elite)
     budget: int = 0  # the stage's interactions: it ends once it has spent this many (0: no limit)
+    from_start: bool = False  # the stage from generation 0: no noise-free stage (round 5)
+    leg_soft_steps: int = 0  # a clean leg longer than this costs part of a failed leg (0: none; round 5)
+    near_miss_mm: float = 0.0  # a motion ending with the bumper closer than this to an obstacle ...
+    near_miss_cost: float = 0.1  # ... costs this much of a clean leg (round 5; 0 mm: none)
+    back_cost: float = 0.0  # a backward motion with an obstacle beside or behind costs this much of a leg
+    final_race: int = 0  # R: at the end the last distinct elites drive R common seeds each (0: none; round 5)
+    final_candidates: int = 8  # N: how many of the last distinct elites the final race takes
 
     def __post_init__(self):
         for name, least in (("trials", 0), ("accept_runs", 1), ("max_failures", 1), ("max_generations", 1),
-                            ("race", 0), ("budget", 0)):
+                            ("race", 0), ("budget", 0), ("leg_soft_steps", 0),
+                            ("final_race", 0), ("final_candidates", 1)):
             value = getattr(self, name)
             if not (isinstance(value, int) and value >= least):
                 raise ValueError(f"{name} must be an int >= {least}, got {value!r}")
+        for name in ("near_miss_mm", "near_miss_cost", "back_cost"):
+            if not getattr(self, name) >= 0:
+                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
 
     def to_dict(self) -> dict:
-        return asdict(self)
+        """The parameters; the round-5 ones only when set (older checkpoints keep their config)."""
+        d = asdict(self)
+        for name, default in (("from_start", False), ("leg_soft_steps", 0),
+                              ("near_miss_mm", 0.0), ("near_miss_cost", 0.1), ("back_cost", 0.0), ("final_race", 0),
+                              ("final_candidates", 8)):
+            if d[name] == default:
+                del d[name]
+        return d
 
 
 def noise_seeds(seed: int, generation: int, trials: int) -> list[list[int]]:
@@ -99,14 +125,28 @@ class NoisyRun:
         return self.failed_legs == 0
 
 
-def drive_noisy(world, rows, max_leg_steps: int, n_targets: int, noise_seed, max_failures: int) -> NoisyRun:
-    """Drive the noisy ``world`` (re-seeded with ``noise_seed``) with one genome; score the run."""
+def drive_noisy(world, rows, max_leg_steps: int, n_targets: int, noise_seed, max_failures: int,
+                leg_soft_steps: int = 0, near_miss_mm: float = 0.0, near_miss_cost: float = 0.0,
+                back_cost: float = 0.0) -> NoisyRun:
+    """Drive the noisy ``world`` (re-seeded with ``noise_seed``) with one genome; score the run.
+
+    ``leg_soft_steps`` S > 0: a clean leg of n > S steps costs (n - S) / (max_leg_steps - S) of a
+    clean leg (a leg at the limit is almost a time-out: the noise makes such legs time out on other
+    seeds). ``near_miss_mm`` > 0: every motion that ends with the bumper closer than that to an
+    obstacle costs ``near_miss_cost`` of a clean leg (the hand-written baseline never comes within
+    30 mm; the evolved controllers that crash under noise often do). ``back_cost``: every backward
+    motion with an obstacle beside or behind (x3, x4 or x5) costs that much (backing towards a seen
+    obstacle crashes into what the three rear rays miss)."""
     rows = validate_rows(rows)
     prefix = list(noise_seed)
     res = run_course(world, truth_tables(rows, reflex=True), max_leg_steps, n_targets=n_targets,
-                     skip_failed_legs=True, max_failures=max_failures, leg_noise_seed=lambda leg: [*prefix, leg])
+                     skip_failed_legs=True, max_failures=max_failures, leg_noise_seed=lambda leg: [*prefix, leg],
+                     near_miss_mm=near_miss_mm, count_backs=back_cost > 0)
     fitness = model_free_fitness(res.targets_reached, res.final_distance_mm, world.arena.size_mm,
                                  res.steps, max_run_steps(max_leg_steps, n_targets))
+    if 0 < leg_soft_steps < max_leg_steps:
+        fitness -= sum(max(n - leg_soft_steps, 0) for n in res.leg_steps) / (max_leg_steps - leg_soft_steps)
+    fitness -= near_miss_cost * res.near_misses + back_cost * res.obstacle_backs
     return NoisyRun(
         fitness=fitness, clean_legs=int(res.targets_reached), failed_legs=int(res.failed_legs),
         steps=int(res.steps), failure_state=int(res.failure_states[0]) if res.failure_states else None,
@@ -177,8 +217,10 @@ def _noisy_world(arena: str, seed=0):
 
 
 def _drive_one(task) -> NoisyRun:
-    arena, max_leg_steps, n_targets, rows, noise_seed, max_failures = task
-    return drive_noisy(_noisy_world(arena), rows, max_leg_steps, n_targets, noise_seed, max_failures)
+    arena, max_leg_steps, n_targets, rows, noise_seed, max_failures, *extra = task
+    soft, near_mm, near_cost, back_cost = extra if extra else (0, 0.0, 0.0, 0.0)
+    return drive_noisy(_noisy_world(arena), rows, max_leg_steps, n_targets, noise_seed, max_failures,
+                       soft, near_mm, near_cost, back_cost)
 
 
 def noisy_generation(run_map, pop, stage: NoisyStage, records: Records, seed: int, generation: int,
@@ -197,7 +239,9 @@ def noisy_generation(run_map, pop, stage: NoisyStage, records: Records, seed: in
     unique = {}
     for key, rows in zip(keys, pop):
         unique.setdefault(key, rows)
-    tasks = [(arena, max_leg_steps, n_targets, rows, ns, stage.max_failures)
+    tasks = [(arena, max_leg_steps, n_targets, rows, ns, stage.max_failures,
+              stage.leg_soft_steps, stage.near_miss_mm, stage.near_miss_cost,
+              stage.back_cost)
              for rows in unique.values() for ns in seeds]
     driven = run_map(_drive_one, tasks)
     k = stage.trials
@@ -215,7 +259,10 @@ def noisy_generation(run_map, pop, stage: NoisyStage, records: Records, seed: in
         # The champion (pop[0], the elite of the generation before) and the challenger race on
         # `race` more common seeds; the challenger takes over only if it is better there too.
         extra = [[NOISE_TAG, int(seed), int(generation), k + j] for j in range(stage.race)]
-        tasks = [(arena, max_leg_steps, n_targets, pop[i], ns, stage.max_failures) for i in (0, top) for ns in extra]
+        tasks = [(arena, max_leg_steps, n_targets, pop[i], ns, stage.max_failures,
+              stage.leg_soft_steps, stage.near_miss_mm, stage.near_miss_cost,
+              stage.back_cost)
+                 for i in (0, top) for ns in extra]
         raced = run_map(_drive_one, tasks)
         champion, challenger = raced[:stage.race], raced[stage.race:]
         for key, rs in ((keys[0], champion), (keys[top], challenger)):
@@ -226,6 +273,30 @@ def noisy_generation(run_map, pop, stage: NoisyStage, records: Records, seed: in
         if sum(r.fitness for r in challenger) <= sum(r.fitness for r in champion):
             fitness[0] = fitness[top] + 1e-9  # the champion stays the elite
     return keys, runs, fitness, failures, interactions, simulated
+
+
+FINAL_RACE_TAG = 1_000_000  # third word of the final race's noise seeds (generations stay below it)
+
+
+def final_race(run_map, genomes_hex: list[str], stage: NoisyStage, seed: int, arena: str, max_leg_steps: int,
+               n_targets: int):
+    """The final race (round 5): every candidate drives the same ``stage.final_race`` noise seeds
+    ``[NOISE_TAG, seed, FINAL_RACE_TAG, j]`` (graded runs, as in the stage). The winner has the
+    fewest failed legs over them, ties broken by the mean fitness, then by the later candidate.
+    Returns (index of the winner, per candidate [failed legs, clean runs, mean fitness],
+    interactions)."""
+    seeds = [[NOISE_TAG, int(seed), FINAL_RACE_TAG, j] for j in range(stage.final_race)]
+    tasks = [(arena, max_leg_steps, n_targets, rows_from_hex(g), ns, stage.max_failures,
+              stage.leg_soft_steps, stage.near_miss_mm, stage.near_miss_cost,
+              stage.back_cost) for g in genomes_hex for ns in seeds]
+    runs = run_map(_drive_one, tasks)
+    r = stage.final_race
+    table = []
+    for i in range(len(genomes_hex)):
+        rs = runs[i * r:(i + 1) * r]
+        table.append([sum(x.failed_legs for x in rs), sum(x.clean for x in rs), sum(x.fitness for x in rs) / r])
+    winner = min(range(len(table)), key=lambda i: (table[i][0], -table[i][2], -i))
+    return winner, table, sum(x.steps for x in runs)
 
 
 # -- Transfer to the "real" (noisy) world --------------------------------------------------------

@@ -220,7 +220,8 @@ def cmd_offline(args, extras: dict, sub=None) -> int:
     if args.table:
         return print_table(args.table)
     for name, least in (("generations_cap", 1), ("workers", 1), ("max_leg_steps", 1), ("seed", 0),
-                        ("noisy_trials", 0), ("noisy_accept_runs", 1), ("noisy_max_failures", 1), ("noisy_max_generations", 1), ("noisy_race", 0), ("noisy_budget", 0),
+                        ("noisy_trials", 0), ("noisy_accept_runs", 1), ("noisy_max_failures", 1), ("noisy_max_generations", 1), ("noisy_race", 0), ("noisy_budget", 0), ("noisy_leg_soft_steps", 0),
+                        ("noisy_final_race", 0), ("noisy_near_miss_mm", 0), ("noisy_near_miss_cost", 0), ("noisy_back_cost", 0), ("noisy_final_candidates", 1),
                         ("transfer_trials", 0)):
         if getattr(args, name) < least:
             raise UserError(f"--{name.replace('_', '-')} must be at least {least}, got {getattr(args, name)!r}")
@@ -264,7 +265,12 @@ def noisy_stage(args):
     from cosim.offline_noisy import NoisyStage
 
     return NoisyStage(trials=args.noisy_trials, accept_runs=args.noisy_accept_runs,
-                      max_failures=args.noisy_max_failures, max_generations=args.noisy_max_generations, race=args.noisy_race, budget=args.noisy_budget)
+                      max_failures=args.noisy_max_failures, max_generations=args.noisy_max_generations, race=args.noisy_race, budget=args.noisy_budget,
+                      from_start=args.noisy_from_start,
+                      leg_soft_steps=args.noisy_leg_soft_steps, final_race=args.noisy_final_race,
+                      near_miss_mm=args.noisy_near_miss_mm, near_miss_cost=args.noisy_near_miss_cost,
+                      back_cost=args.noisy_back_cost,
+                      final_candidates=args.noisy_final_candidates)
 
 
 def run_offline_from_args(args, out: Path) -> dict:

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ga.motions import X_BACK, X_LEFT, X_RIGHT, Motion
 from sim_world.arena import N_POSITIONS, Arena
 from sim_world.world import World
 
@@ -28,6 +29,8 @@ from sim_world.world import World
 # leg, while a robot caught in a loop is stopped before it wastes much (SPEC section 11: leg
 # time-outs dominate the interaction count).
 DEFAULT_MAX_LEG_STEPS = 500
+_BACKWARD = frozenset((Motion.BACKWARD, Motion.BACKWARD_LEFT, Motion.BACKWARD_RIGHT))
+_SIDE_OR_BACK = (1 << X_LEFT) | (1 << X_RIGHT) | (1 << X_BACK)
 
 
 @dataclass(frozen=True)
@@ -79,6 +82,8 @@ class CourseResult:
     trajectory: list[tuple[float, float, float, str]] = field(default_factory=list)
     failed_legs: int = 0  # legs ended by a crash or a time-out (only with skip_failed_legs)
     failure_states: list[int] = field(default_factory=list)  # the state each failed leg ended in
+    near_misses: int = 0  # motions that ended with the bumper closer than near_miss_mm to an obstacle
+    obstacle_backs: int = 0  # backward motions executed with an obstacle beside or behind (count_backs)
 
 
 def run_course(
@@ -92,6 +97,8 @@ def run_course(
     skip_failed_legs: bool = False,
     max_failures: int | None = None,
     leg_noise_seed=None,
+    near_miss_mm: float = 0.0,
+    count_backs: bool = False,
 ) -> CourseResult:
     """Run the motion table ``table`` ((256,) ints, reflex already applied) through the course.
 
@@ -103,6 +110,10 @@ def run_course(
     0, 1, ...): the world's noise generator is re-seeded with its value before each leg's start
     pose is sensed, so a leg's noise does not depend on what earlier legs drew (common random
     numbers per leg: two controllers that drive a leg alike meet the same noise there).
+    ``near_miss_mm`` > 0: count the motions (crashed ones excluded) after which the bumper is
+    closer than this to an obstacle (``near_misses``; docs/offline.md round 5). ``count_backs``:
+    count the backward motions executed with an obstacle beside or behind (x3, x4 or x5 set;
+    ``obstacle_backs``).
     """
     if max_leg_steps < 1:
         raise ValueError(f"max_leg_steps must be >= 1, got {max_leg_steps!r}")
@@ -146,6 +157,10 @@ def run_course(
             if record:
                 x, y, h = world.pose
                 traj.append((x, y, h, "crash" if out.crashed else ("target" if out.reached else "")))
+            if count_backs and a in _BACKWARD and s & _SIDE_OR_BACK:
+                res.obstacle_backs += 1
+            if near_miss_mm and not out.crashed and world.bumper_clearance < near_miss_mm:
+                res.near_misses += 1
             if out.crashed:
                 res.crashes += 1
                 if skip_failed_legs:

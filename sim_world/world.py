@@ -296,6 +296,12 @@ class World:
         """The 8-bit world state observed at the current pose (sampled once per pose)."""
         return self._state
 
+    @property
+    def bumper_clearance(self) -> float:
+        """Distance (mm) from the bumper to the nearest obstacle at the current pose, as sensed
+        (noise-free geometry); IR_RANGE_MM when nothing is within the sensors' reach."""
+        return self._clearance - ROBOT_RADIUS_MM
+
     def target_distance(self) -> float:
         return math.hypot(self._bx - self._x, self._by - self._y)
 

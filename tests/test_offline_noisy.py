@@ -158,3 +158,80 @@ def test_the_budget_ends_the_noisy_stage(tmp_path):
 def test_table_key_is_the_truth_table():
     rows = np.zeros(50, dtype=np.uint32)
     assert table_key(rows) == table_key(rows.copy()) and len(table_key(rows)) == 16
+
+
+# -- Round 5: the stage from generation 0, the leg soft limit, scaled noise, the final race --------
+
+
+def test_the_stage_from_the_start_has_no_noise_free_stage_and_a_final_race_counted(tmp_path):
+    cfg = dict(SMALL, arena="one_obstacle", n_targets=4, max_leg_steps=80)
+    stage = NoisyStage(trials=1, race=2, accept_runs=1000, budget=6000, from_start=True, leg_soft_steps=40,
+                       final_race=2, final_candidates=3)
+    s = run_offline(1, generations_cap=50, out=tmp_path, noisy=stage, **cfg)
+    n = s["noisy_stage"]
+    history = json.loads((tmp_path / "history.json").read_text())
+    assert n["from_generation"] == 1 and n["generations"] == s["generations"] and all(e["stage"] == 2 for e in history)
+    assert s["config"]["noisy_stage"] == stage.to_dict() and stage.to_dict()["from_start"] is True
+    race = n["final_race"]
+    assert 1 <= race["candidates"] <= 3 and len(race["failed_legs_clean_runs_mean_fitness"]) == race["candidates"]
+    assert s["interactions"] == n["interactions"] == history[-1]["interactions"] + race["interactions"]
+    assert race["interactions"] > 0
+    # The defaults of the round-5 fields stay out of the config (older checkpoints still resume).
+    assert "from_start" not in NoisyStage(trials=1).to_dict()
+
+
+def test_a_long_clean_leg_costs_part_of_a_leg():
+    world = World("empty", noise=DEFAULT_NOISE)
+    rows = np.zeros(50, dtype=np.uint32)  # the reflex alone: it reaches the ball in the empty arena
+    plain = drive_noisy(world, rows, 150, 3, [1, 2], 4)
+    soft = drive_noisy(world, rows, 150, 3, [1, 2], 4, leg_soft_steps=10)
+    assert plain.clean_legs == soft.clean_legs == 3 and plain.steps == soft.steps > 30
+    assert soft.fitness < plain.fitness
+    assert drive_noisy(world, rows, 150, 3, [1, 2], 4, leg_soft_steps=1000).fitness == plain.fitness
+    with pytest.raises(ValueError, match="leg_soft_steps"):
+        NoisyStage(trials=1, leg_soft_steps=-1)
+
+
+def test_near_misses_count_motions_ending_close_to_an_obstacle_and_cost_fitness():
+    world = World("one_obstacle")
+    forward = _forward_table()
+    counts = [run_course(world, forward, 60, n_targets=3, skip_failed_legs=True, near_miss_mm=m).near_misses
+              for m in (0.0, 30.0, 300.0)]
+    assert counts[0] == 0 < counts[2] and counts[1] <= counts[2]
+    world = World("one_obstacle", noise=DEFAULT_NOISE)
+    plain = drive_noisy(world, np.zeros(50, dtype=np.uint32), 60, 3, [1, 2], 4)
+    near = drive_noisy(world, np.zeros(50, dtype=np.uint32), 60, 3, [1, 2], 4, near_miss_mm=300.0,
+                       near_miss_cost=0.5)
+    assert near.steps == plain.steps and near.fitness < plain.fitness
+
+
+def test_backward_motions_beside_or_behind_an_obstacle_are_counted_and_cost_fitness():
+    from sim_world.baseline import baseline_table
+
+    world = World("one_obstacle")
+    backward = np.full(256, int(Motion.BACKWARD_RIGHT), dtype=np.uint8)
+    res = run_course(world, backward, 40, n_targets=2, skip_failed_legs=True, count_backs=True)
+    assert 0 < res.obstacle_backs <= res.steps
+    assert run_course(world, backward, 40, n_targets=2, skip_failed_legs=True).obstacle_backs == 0
+    # The hand-written baseline backs off only when the obstacle is ahead alone.
+    assert run_course(world, baseline_table(), 150, n_targets=4, count_backs=True).obstacle_backs == 0
+    rows = np.zeros(50, dtype=np.uint32)
+    rows[0] = 0b111 << 16  # one row with no literal fires everywhere: BACKWARD_RIGHT outside the reflex
+    noisy = World("one_obstacle", noise=DEFAULT_NOISE)
+    plain = drive_noisy(noisy, rows, 40, 2, [1, 2], 4)
+    costly = drive_noisy(noisy, rows, 40, 2, [1, 2], 4, back_cost=0.5)
+    assert costly.steps == plain.steps and costly.fitness < plain.fitness
+
+
+def test_the_round5_config_file_names_only_offline_options():
+    import argparse
+    import tomllib
+    from pathlib import Path
+
+    from cosim import offline
+
+    dests = {a.dest for a in offline.add_arguments(argparse.ArgumentParser())._actions}
+    cfg = tomllib.loads((Path(__file__).parents[1] / "experiments/offline_round5.toml").read_text())
+    assert set(cfg) <= dests and cfg["noisy_from_start"] is True and cfg["noisy_trials"] == 1
+    NoisyStage(**{k[len("noisy_"):]: v for k, v in cfg.items() if k.startswith("noisy_")
+                  and k[len("noisy_"):] in NoisyStage.__dataclass_fields__})
