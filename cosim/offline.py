@@ -40,8 +40,8 @@ from typing import Callable
 import numpy as np
 
 from cosim.checkpoint import load_checkpoint, save_checkpoint
-from cosim.offline_noisy import (TRANSFER_TRIALS, NoisyStage, Records, final_race, load_arena_arg,
-                                 noisy_generation, table_key, transfer)
+from cosim.offline_noisy import (TRANSFER_TRIALS, NoisyStage, Records, add_noisy_arguments, final_race,
+                                 load_arena_arg, noisy_generation, table_key, transfer)
 from cosim.offline_report import plot_results, seeds_table  # noqa: F401 (seeds_table: the API)
 from cosim.runs import atomic_savefig, atomic_write_json
 from ga.evolution import GAConfig, GeneticAlgorithm
@@ -477,35 +477,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     parser.add_argument("--arena", default=DEFAULT_ARENA, help="arena name or .json path")
     parser.add_argument("--max-leg-steps", type=int, default=DEFAULT_MAX_LEG_STEPS,
                         help="step limit of one leg")
-    parser.add_argument("--noisy-trials", type=int, default=DEFAULT_NOISY.trials,
-                        help="the noisy stage (cosim.offline_noisy): common noise seeds per generation "
-                             "once the noise-free best reaches every target (0: none)")
-    parser.add_argument("--noisy-accept-runs", type=int, default=DEFAULT_NOISY.accept_runs,
-                        help="noisy stage: a controller with this many noisy runs, all clean, ends the run")
-    parser.add_argument("--noisy-max-failures", type=int, default=DEFAULT_NOISY.max_failures,
-                        help="noisy stage: a run stops at this many failed legs")
-    parser.add_argument("--noisy-max-generations", type=int, default=DEFAULT_NOISY.max_generations,
-                        help="noisy stage: its generation cap (then the best by record is the result)")
-    parser.add_argument("--noisy-race", type=int, default=DEFAULT_NOISY.race,
-                        help="noisy stage: seeds of the champion/challenger race for the elite (0: none)")
-    parser.add_argument("--noisy-budget", type=int, default=DEFAULT_NOISY.budget,
-                        help="noisy stage: it ends once it has spent this many interactions (0: no limit)")
-    parser.add_argument("--noisy-from-start", action="store_true",
-                        help="noisy stage: from generation 0, no noise-free stage (docs/offline.md round 5)")
-    parser.add_argument("--noisy-leg-soft-steps", type=int, default=DEFAULT_NOISY.leg_soft_steps,
-                        help="noisy stage: a clean leg of n > S steps costs (n - S) / (limit - S) of a leg (0: none)")
-    parser.add_argument("--noisy-near-miss-mm", type=float, default=DEFAULT_NOISY.near_miss_mm,
-                        help="noisy stage: a motion ending with the bumper closer than this to an obstacle "
-                             "costs --noisy-near-miss-cost of a leg (0: none)")
-    parser.add_argument("--noisy-near-miss-cost", type=float, default=DEFAULT_NOISY.near_miss_cost,
-                        help="noisy stage: the cost of one near miss, in clean legs")
-    parser.add_argument("--noisy-back-cost", type=float, default=DEFAULT_NOISY.back_cost,
-                        help="noisy stage: a backward motion with an obstacle beside or behind costs this much of a leg")
-    parser.add_argument("--noisy-final-race", type=int, default=DEFAULT_NOISY.final_race,
-                        help="noisy stage: at its end the last distinct elites drive this many common seeds "
-                             "each; the one with the fewest failed legs is the result (0: none)")
-    parser.add_argument("--noisy-final-candidates", type=int, default=DEFAULT_NOISY.final_candidates,
-                        help="noisy stage: how many of the last distinct elites the final race takes")
+    add_noisy_arguments(parser)
     parser.add_argument("--transfer-trials", type=int, default=TRANSFER_TRIALS,
                         help="noisy-world runs of the final controller (noise seeds seed*1000+i)")
     parser.add_argument("--no-plots", action="store_true",

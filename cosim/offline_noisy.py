@@ -46,7 +46,7 @@ Every motion of every noisy run is an interaction of the off-line method (issue 
 from __future__ import annotations
 
 import hashlib
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 
 import numpy as np
@@ -327,3 +327,45 @@ def transfer(genome_hex: str | None, arena: str, max_leg_steps: int, n_targets: 
         "ended_by_crash": crashed,
         "steps": steps,
     }
+
+
+_DEFAULT = NoisyStage()
+
+
+def add_noisy_arguments(parser) -> None:
+    """The noisy stage's options of ``ehw offline`` (``--noisy-*``, one per :class:`NoisyStage`
+    field; :func:`stage_from_args` reads them back)."""
+    parser.add_argument("--noisy-trials", type=int, default=_DEFAULT.trials,
+                        help="the noisy stage (cosim.offline_noisy): common noise seeds per generation "
+                             "once the noise-free best reaches every target (0: none)")
+    parser.add_argument("--noisy-accept-runs", type=int, default=_DEFAULT.accept_runs,
+                        help="noisy stage: a controller with this many noisy runs, all clean, ends the run")
+    parser.add_argument("--noisy-max-failures", type=int, default=_DEFAULT.max_failures,
+                        help="noisy stage: a run stops at this many failed legs")
+    parser.add_argument("--noisy-max-generations", type=int, default=_DEFAULT.max_generations,
+                        help="noisy stage: its generation cap (then the best by record is the result)")
+    parser.add_argument("--noisy-race", type=int, default=_DEFAULT.race,
+                        help="noisy stage: seeds of the champion/challenger race for the elite (0: none)")
+    parser.add_argument("--noisy-budget", type=int, default=_DEFAULT.budget,
+                        help="noisy stage: it ends once it has spent this many interactions (0: no limit)")
+    parser.add_argument("--noisy-from-start", action="store_true",
+                        help="noisy stage: from generation 0, no noise-free stage (docs/offline.md round 5)")
+    parser.add_argument("--noisy-leg-soft-steps", type=int, default=_DEFAULT.leg_soft_steps,
+                        help="noisy stage: a clean leg of n > S steps costs (n - S) / (limit - S) of a leg (0: none)")
+    parser.add_argument("--noisy-near-miss-mm", type=float, default=_DEFAULT.near_miss_mm,
+                        help="noisy stage: a motion ending with the bumper closer than this to an obstacle "
+                             "costs --noisy-near-miss-cost of a leg (0: none)")
+    parser.add_argument("--noisy-near-miss-cost", type=float, default=_DEFAULT.near_miss_cost,
+                        help="noisy stage: the cost of one near miss, in clean legs")
+    parser.add_argument("--noisy-back-cost", type=float, default=_DEFAULT.back_cost,
+                        help="noisy stage: a backward motion with an obstacle beside or behind costs this much of a leg")
+    parser.add_argument("--noisy-final-race", type=int, default=_DEFAULT.final_race,
+                        help="noisy stage: at its end the last distinct elites drive this many common seeds "
+                             "each; the one with the fewest failed legs is the result (0: none)")
+    parser.add_argument("--noisy-final-candidates", type=int, default=_DEFAULT.final_candidates,
+                        help="noisy stage: how many of the last distinct elites the final race takes")
+
+
+def stage_from_args(args) -> NoisyStage:
+    """The off-line run's noisy stage from parsed ``args`` (:func:`add_noisy_arguments`)."""
+    return NoisyStage(**{f.name: getattr(args, "noisy_" + f.name) for f in fields(NoisyStage)})

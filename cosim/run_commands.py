@@ -262,15 +262,9 @@ def print_table(paths) -> int:
 
 def noisy_stage(args):
     """The off-line run's noisy stage from parsed ``args`` (``--noisy-*``)."""
-    from cosim.offline_noisy import NoisyStage
+    from cosim.offline_noisy import stage_from_args
 
-    return NoisyStage(trials=args.noisy_trials, accept_runs=args.noisy_accept_runs,
-                      max_failures=args.noisy_max_failures, max_generations=args.noisy_max_generations, race=args.noisy_race, budget=args.noisy_budget,
-                      from_start=args.noisy_from_start,
-                      leg_soft_steps=args.noisy_leg_soft_steps, final_race=args.noisy_final_race,
-                      near_miss_mm=args.noisy_near_miss_mm, near_miss_cost=args.noisy_near_miss_cost,
-                      back_cost=args.noisy_back_cost,
-                      final_candidates=args.noisy_final_candidates)
+    return stage_from_args(args)
 
 
 def run_offline_from_args(args, out: Path) -> dict:
