@@ -305,7 +305,7 @@ def final_race(run_map, genomes_hex: list[str], stage: NoisyStage, seed: int, ar
 def transfer(genome_hex: str | None, arena: str, max_leg_steps: int, n_targets: int, seed: int,
              trials: int = TRANSFER_TRIALS) -> dict:
     """Drive the noisy world with the best controller: targets reached before the first crash
-    (or a leg time-out), over ``trials`` noise seeds ``seed * 1000 + i``."""
+    (or a leg time-out after ``max_leg_steps``), over ``trials`` noise seeds ``seed * 1000 + i``."""
     from sim_world.world import DEFAULT_NOISE
 
     if genome_hex is None:
@@ -321,6 +321,7 @@ def transfer(genome_hex: str | None, arena: str, max_leg_steps: int, n_targets: 
     return {
         "noise": repr(DEFAULT_NOISE),
         "noise_seeds": [seed * 1000 + i for i in range(trials)],
+        "max_leg_steps": int(max_leg_steps),
         "targets_without_crash": targets,
         "targets_without_crash_median": float(np.median(targets)),
         "all_targets_fraction": float(np.mean([t >= n_targets for t in targets])),

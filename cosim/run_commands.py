@@ -222,7 +222,7 @@ def cmd_offline(args, extras: dict, sub=None) -> int:
     for name, least in (("generations_cap", 1), ("workers", 1), ("max_leg_steps", 1), ("seed", 0),
                         ("noisy_trials", 0), ("noisy_accept_runs", 1), ("noisy_max_failures", 1), ("noisy_max_generations", 1), ("noisy_race", 0), ("noisy_budget", 0), ("noisy_leg_soft_steps", 0),
                         ("noisy_final_race", 0), ("noisy_near_miss_mm", 0), ("noisy_near_miss_cost", 0), ("noisy_back_cost", 0), ("noisy_final_candidates", 1),
-                        ("transfer_trials", 0)):
+                        ("transfer_trials", 0), ("transfer_leg_steps", 0)):
         if getattr(args, name) < least:
             raise UserError(f"--{name.replace('_', '-')} must be at least {least}, got {getattr(args, name)!r}")
     from sim_world.arena import load_arena
@@ -275,6 +275,7 @@ def run_offline_from_args(args, out: Path) -> dict:
         args.seed, generations_cap=args.generations_cap, workers=args.workers, resume=args.resume,
         out=out, arena=args.arena, max_leg_steps=args.max_leg_steps, progress=not args.quiet,
         plots=not args.no_plots, noisy=noisy_stage(args), transfer_trials=args.transfer_trials,
+        transfer_leg_steps=args.transfer_leg_steps,
     )
     offline._WORLDS.clear()  # free the pymunk spaces now, not during interpreter shutdown
     keys = ("seed", "reached_all_targets", "targets_reached", "generations", "genetic_operations",
@@ -285,7 +286,7 @@ def run_offline_from_args(args, out: Path) -> dict:
         t = summary["transfer"]
         print(f"{'transfer (noisy world)':22s} targets before a crash: {t['targets_without_crash']}")
         print(f"{'transfer fraction':22s} {t['all_targets_fraction']} of {len(t['targets_without_crash'])} "
-              "reach every target without a crash or a time-out")
+              f"reach every target without a crash or a time-out (leg limit {t['max_leg_steps']})")
     if summary.get("noisy_stage"):
         n = summary["noisy_stage"]
         print(f"{'noisy stage':22s} from generation {n['from_generation']}, {n['interactions']} interactions, "

@@ -89,6 +89,7 @@ def test_command_line_writes_summary_figures_and_transfer(tmp_path, capsys):
         assert key in summary
     assert len(summary["best_genome"]) == 238 and summary["seed"] == 4
     assert len(summary["transfer"]["targets_without_crash"]) == 20
+    assert summary["transfer"]["max_leg_steps"] == 60  # the run's own leg limit by default
     assert (out / "fig5_trajectory.png").stat().st_size > 1000
     assert (out / "fig6_best_per_generation.png").stat().st_size > 1000
     assert "wrote" in capsys.readouterr().out
@@ -113,3 +114,18 @@ def test_evaluator_cache_gives_the_driven_result():
     with Evaluator("one_obstacle", 80, cache_size=7) as small:
         assert small(pop[:6]) == got[:6]
         assert small(more) == [evaluate(world, g, 80) for g in more]
+
+
+def test_transfer_leg_steps_sets_the_transfer_runs_limit(tmp_path, capsys):
+    from cosim.offline_noisy import transfer
+
+    out = tmp_path / "run"
+    ehw(["offline", "--seed", "4", "--generations-cap", "2", "--arena", "empty", "--max-leg-steps", "60",
+         "--out", str(out), "--quiet", "--no-plots", "--transfer-trials", "2", "--transfer-leg-steps", "500"])
+    t = json.loads((out / "summary.json").read_text())["transfer"]
+    assert t["max_leg_steps"] == 500 and "(leg limit 500)" in capsys.readouterr().out
+    best = json.loads((out / "summary.json").read_text())["best_genome"]
+    assert transfer(best, "empty", 1, 3, 4, trials=2)["targets_without_crash"] == [0, 0]  # every leg times out
+    assert min(transfer(best, "empty", 500, 3, 4, trials=2)["targets_without_crash"]) > 0
+    assert ehw(["offline", "--transfer-leg-steps", "-1", "--out", str(tmp_path / "bad"), "--quiet"]) != 0
+    assert "error: --transfer-leg-steps must be at least 0" in capsys.readouterr().err

@@ -24,3 +24,25 @@ def test_diagnosis_names_the_failing_step():
         assert r["kind"] in ("crash", "time-out") and r["targets"] < 64
         if r["kind"] == "crash":
             assert 0 <= r["state"] < 256 and r["motion"] in range(8) and r["clearance_mm"] >= 0
+
+
+def test_transfer_limits_tabulates_each_summary_and_the_baseline(tmp_path, capsys):
+    import json
+
+    from cosim.offline import default_ga_config, run_offline
+
+    spec = importlib.util.spec_from_file_location("offline_transfer_limits", SCRIPT.with_name("offline_transfer_limits.py"))
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    run_offline(4, generations_cap=2, out=tmp_path / "run", arena="empty", max_leg_steps=60, n_targets=3,
+                progress=False, plots=False, transfer_trials=0, ga_config=default_ga_config(population=6, tournament=2))
+    summary = tmp_path / "run" / "summary.json"
+    assert module.main([str(summary), "--limits", "1,500", "--trials", "2"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].endswith("| leg limit 1 | leg limit 500 |") and len(lines) == 4
+    assert lines[2].split(" | ")[3] == "0"  # a leg limit of 1 step times every leg out
+    assert lines[3].startswith("| hand-written baseline") and lines[3].split(" | ")[3] == "0"
+    assert lines[3].endswith("| 1 |")  # the baseline reaches 3 targets in the empty arena
+    assert json.loads(summary.read_text())["seed"] == 4
+    assert module.main([str(summary), "--limits", "0"]) == 2
+    assert capsys.readouterr().err.startswith("error: ")
