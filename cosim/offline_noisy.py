@@ -94,12 +94,15 @@ class NoisyStage:
     def to_dict(self) -> dict:
         """The parameters; the round-5 ones only when set (older checkpoints keep their config)."""
         d = asdict(self)
-        for name, default in (("from_start", False), ("leg_soft_steps", 0),
-                              ("near_miss_mm", 0.0), ("near_miss_cost", 0.1), ("back_cost", 0.0), ("final_race", 0),
-                              ("final_candidates", 8)):
-            if d[name] == default:
-                del d[name]
+        for f in fields(self):
+            if f.name in ROUND5_FIELDS and d[f.name] == f.default:
+                del d[f.name]
         return d
+
+
+# The fields added in round 5: left out of ``to_dict`` at their defaults.
+ROUND5_FIELDS = frozenset(("from_start", "leg_soft_steps", "near_miss_mm", "near_miss_cost", "back_cost",
+                           "final_race", "final_candidates"))
 
 
 def noise_seeds(seed: int, generation: int, trials: int) -> list[list[int]]:
@@ -217,10 +220,14 @@ def _noisy_world(arena: str, seed=0):
 
 
 def _drive_one(task) -> NoisyRun:
-    arena, max_leg_steps, n_targets, rows, noise_seed, max_failures, *extra = task
-    soft, near_mm, near_cost, back_cost = extra if extra else (0, 0.0, 0.0, 0.0)
-    return drive_noisy(_noisy_world(arena), rows, max_leg_steps, n_targets, noise_seed, max_failures,
-                       soft, near_mm, near_cost, back_cost)
+    arena, max_leg_steps, n_targets, rows, noise_seed, stage = task
+    return drive_noisy(_noisy_world(arena), rows, max_leg_steps, n_targets, noise_seed, stage.max_failures,
+                       stage.leg_soft_steps, stage.near_miss_mm, stage.near_miss_cost, stage.back_cost)
+
+
+def _tasks(stage: NoisyStage, arena: str, max_leg_steps: int, n_targets: int, genomes, seeds) -> list[tuple]:
+    """One ``_drive_one`` task per (genome, noise seed), genome-major."""
+    return [(arena, max_leg_steps, n_targets, rows, ns, stage) for rows in genomes for ns in seeds]
 
 
 def noisy_generation(run_map, pop, stage: NoisyStage, records: Records, seed: int, generation: int,
@@ -239,11 +246,7 @@ def noisy_generation(run_map, pop, stage: NoisyStage, records: Records, seed: in
     unique = {}
     for key, rows in zip(keys, pop):
         unique.setdefault(key, rows)
-    tasks = [(arena, max_leg_steps, n_targets, rows, ns, stage.max_failures,
-              stage.leg_soft_steps, stage.near_miss_mm, stage.near_miss_cost,
-              stage.back_cost)
-             for rows in unique.values() for ns in seeds]
-    driven = run_map(_drive_one, tasks)
+    driven = run_map(_drive_one, _tasks(stage, arena, max_leg_steps, n_targets, unique.values(), seeds))
     k = stage.trials
     runs_of = {key: driven[i * k:(i + 1) * k] for i, key in enumerate(unique)}
     for key, runs in runs_of.items():
@@ -259,11 +262,7 @@ def noisy_generation(run_map, pop, stage: NoisyStage, records: Records, seed: in
         # The champion (pop[0], the elite of the generation before) and the challenger race on
         # `race` more common seeds; the challenger takes over only if it is better there too.
         extra = [[NOISE_TAG, int(seed), int(generation), k + j] for j in range(stage.race)]
-        tasks = [(arena, max_leg_steps, n_targets, pop[i], ns, stage.max_failures,
-              stage.leg_soft_steps, stage.near_miss_mm, stage.near_miss_cost,
-              stage.back_cost)
-                 for i in (0, top) for ns in extra]
-        raced = run_map(_drive_one, tasks)
+        raced = run_map(_drive_one, _tasks(stage, arena, max_leg_steps, n_targets, (pop[0], pop[top]), extra))
         champion, challenger = raced[:stage.race], raced[stage.race:]
         for key, rs in ((keys[0], champion), (keys[top], challenger)):
             for run in rs:
@@ -286,10 +285,8 @@ def final_race(run_map, genomes_hex: list[str], stage: NoisyStage, seed: int, ar
     Returns (index of the winner, per candidate [failed legs, clean runs, mean fitness],
     interactions)."""
     seeds = [[NOISE_TAG, int(seed), FINAL_RACE_TAG, j] for j in range(stage.final_race)]
-    tasks = [(arena, max_leg_steps, n_targets, rows_from_hex(g), ns, stage.max_failures,
-              stage.leg_soft_steps, stage.near_miss_mm, stage.near_miss_cost,
-              stage.back_cost) for g in genomes_hex for ns in seeds]
-    runs = run_map(_drive_one, tasks)
+    runs = run_map(_drive_one, _tasks(stage, arena, max_leg_steps, n_targets,
+                                      [rows_from_hex(g) for g in genomes_hex], seeds))
     r = stage.final_race
     table = []
     for i in range(len(genomes_hex)):

@@ -80,7 +80,8 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
     p.add_argument("--ga", choices=("host", "hardware"), default=d.ga,
                    help="the learning phases' GA: the host's NumPy GA (default) or the learning "
                         "board's hardware GA (SPEC section 12, docs/learner.md)")
-    p.add_argument("--lanes", type=int, default=d.lanes, help="evaluator lanes of --ga hardware (default: the ulx3s-learner bitstream's %(default)s)")
+    p.add_argument("--lanes", type=int, default=d.lanes,
+                   help="evaluator lanes of --ga hardware (default: the ulx3s-learner bitstream's %(default)s)")
     p.add_argument("--no-plots", action="store_true")
     p.add_argument("--no-progress", action="store_true")
     return p

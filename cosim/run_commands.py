@@ -220,8 +220,10 @@ def cmd_offline(args, extras: dict, sub=None) -> int:
     if args.table:
         return print_table(args.table)
     for name, least in (("generations_cap", 1), ("workers", 1), ("max_leg_steps", 1), ("seed", 0),
-                        ("noisy_trials", 0), ("noisy_accept_runs", 1), ("noisy_max_failures", 1), ("noisy_max_generations", 1), ("noisy_race", 0), ("noisy_budget", 0), ("noisy_leg_soft_steps", 0),
-                        ("noisy_final_race", 0), ("noisy_near_miss_mm", 0), ("noisy_near_miss_cost", 0), ("noisy_back_cost", 0), ("noisy_final_candidates", 1),
+                        ("noisy_trials", 0), ("noisy_accept_runs", 1), ("noisy_max_failures", 1),
+                        ("noisy_max_generations", 1), ("noisy_race", 0), ("noisy_budget", 0),
+                        ("noisy_leg_soft_steps", 0), ("noisy_final_race", 0), ("noisy_near_miss_mm", 0),
+                        ("noisy_near_miss_cost", 0), ("noisy_back_cost", 0), ("noisy_final_candidates", 1),
                         ("transfer_trials", 0), ("transfer_leg_steps", 0)):
         if getattr(args, name) < least:
             raise UserError(f"--{name.replace('_', '-')} must be at least {least}, got {getattr(args, name)!r}")
