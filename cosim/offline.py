@@ -40,8 +40,8 @@ from typing import Callable
 import numpy as np
 
 from cosim.checkpoint import load_checkpoint, save_checkpoint
-from cosim.offline_noisy import (TRANSFER_TRIALS, NoisyStage, Records, add_noisy_arguments, final_race,
-                                 load_arena_arg, noisy_generation, table_key, transfer)
+from cosim.offline_noisy import (ROBUST_MAX_LEG_STEPS, TRANSFER_TRIALS, NoisyStage, Records, add_noisy_arguments,
+                                 final_race, load_arena_arg, noisy_generation, table_key, transfer)
 from cosim.offline_report import plot_results, seeds_table  # noqa: F401 (seeds_table: the API)
 from cosim.runs import atomic_savefig, atomic_write_json
 from ga.evolution import GAConfig, GeneticAlgorithm
@@ -56,9 +56,10 @@ KIND = "model_free"
 DEFAULT_OUT = Path("results/model_free")
 DEFAULT_ARENA = "default"
 DEFAULT_GENERATIONS_CAP = 3000
-# Step limit of one leg: see docs/offline.md for the measurements behind it.
+# Step limit of one leg of the paper's noise-free method: see docs/offline.md for the measurements
+# behind it. (`ehw offline` runs the noisy stage by default, at ROBUST_MAX_LEG_STEPS.)
 DEFAULT_MAX_LEG_STEPS = 150
-# The noisy stage after the noise-free evolution (cosim.offline_noisy; docs/offline.md, issue 17).
+# run_offline's noisy stage: none, the paper's method (cosim.offline_noisy; docs/offline.md, issue 17).
 DEFAULT_NOISY = NoisyStage()
 
 def default_ga_config(**overrides) -> GAConfig:
@@ -477,8 +478,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
                         help="stop after this many generations")
     parser.add_argument("--workers", type=int, default=1, help="evaluation processes (1: serial)")
     parser.add_argument("--arena", default=DEFAULT_ARENA, help="arena name or .json path")
-    parser.add_argument("--max-leg-steps", type=int, default=DEFAULT_MAX_LEG_STEPS,
-                        help="step limit of one leg")
+    parser.add_argument("--max-leg-steps", type=int, default=ROBUST_MAX_LEG_STEPS,
+                        help=f"step limit of one leg (the paper's noise-free method: {DEFAULT_MAX_LEG_STEPS}, "
+                             "--config experiments/offline_paper.toml)")
     add_noisy_arguments(parser)
     parser.add_argument("--transfer-trials", type=int, default=TRANSFER_TRIALS,
                         help="noisy-world runs of the final controller (noise seeds seed*1000+i)")

@@ -245,15 +245,32 @@ def test_forward_motions_towards_an_obstacle_ahead_are_counted_and_cost_fitness(
         NoisyStage(trials=1, front_cost=-1.0)
 
 
-def test_the_round5_config_file_names_only_offline_options():
+def _stage_of(options: dict) -> NoisyStage:
+    return NoisyStage(**{k[len("noisy_"):]: v for k, v in options.items() if k.startswith("noisy_")})
+
+
+def test_the_config_files_name_only_offline_options_and_the_default_is_the_robust_stage():
     import argparse
     import tomllib
     from pathlib import Path
 
     from cosim import offline
+    from cosim.offline_noisy import ROBUST_MAX_LEG_STEPS, ROBUST_STAGE
 
-    dests = {a.dest for a in offline.add_arguments(argparse.ArgumentParser())._actions}
-    cfg = tomllib.loads((Path(__file__).parents[1] / "experiments/offline_round5.toml").read_text())
+    parser = offline.add_arguments(argparse.ArgumentParser())
+    dests = {a.dest for a in parser._actions}
+    defaults = vars(parser.parse_args([]))
+    # `ehw offline` with no option: the noisy stage from the first generation (issue 17, round 6) ...
+    assert _stage_of(defaults) == ROBUST_STAGE and defaults["max_leg_steps"] == ROBUST_MAX_LEG_STEPS
+    assert defaults["transfer_leg_steps"] == 0  # the transfer at the run's own leg limit
+    experiments = Path(__file__).parents[1] / "experiments"
+    # ... configuration O of round 5, whose file holds the same values ...
+    cfg = tomllib.loads((experiments / "offline_round5.toml").read_text())
     assert set(cfg) <= dests and cfg["noisy_from_start"] is True and cfg["noisy_trials"] == 1
-    NoisyStage(**{k[len("noisy_"):]: v for k, v in cfg.items() if k.startswith("noisy_")
-                  and k[len("noisy_"):] in NoisyStage.__dataclass_fields__})
+    assert _stage_of({**defaults, **cfg}) == ROBUST_STAGE and cfg["max_leg_steps"] == ROBUST_MAX_LEG_STEPS
+    # ... and the paper's noise-free method, run_offline's default, is a file away.
+    cfg = tomllib.loads((experiments / "offline_paper.toml").read_text())
+    assert set(cfg) <= dests and cfg["max_leg_steps"] == offline.DEFAULT_MAX_LEG_STEPS
+    assert _stage_of({**defaults, **cfg}).trials == offline.DEFAULT_NOISY.trials == 0
+    assert "noisy_stage" not in offline.run_config(1, "default", 150, 64, offline.default_ga_config(),
+                                                   _stage_of({**defaults, **cfg}))
