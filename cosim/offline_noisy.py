@@ -80,9 +80,6 @@ class NoisyStage:
     back_cost: float = 0.0  # a backward motion with an obstacle beside or behind costs this much of a leg
     final_race: int = 0  # R: at the end the last distinct elites drive R common seeds each (0: none; round 5)
     final_candidates: int = 8  # N: how many of the last distinct elites the final race takes
-    front_cost: float = 0.0  # a forward motion with x0 set, nothing beside or behind, costs this (round 6)
-    forward_near_mm: float = 0.0  # a forward motion ending this close to an obstacle seen ahead ...
-    forward_near_cost: float = 0.2  # ... costs this much of a clean leg (round 6; 0 mm: none)
 
     def __post_init__(self):
         for name, least in (("trials", 0), ("accept_runs", 1), ("max_failures", 1), ("max_generations", 1),
@@ -91,8 +88,7 @@ class NoisyStage:
             value = getattr(self, name)
             if not (isinstance(value, int) and value >= least):
                 raise ValueError(f"{name} must be an int >= {least}, got {value!r}")
-        for name in ("near_miss_mm", "near_miss_cost", "back_cost", "front_cost", "forward_near_mm",
-                     "forward_near_cost"):
+        for name in ("near_miss_mm", "near_miss_cost", "back_cost"):
             if not getattr(self, name) >= 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
 
@@ -105,10 +101,9 @@ class NoisyStage:
         return d
 
 
-# The fields added in rounds 5 and 6: left out of ``to_dict`` at their defaults.
+# The fields added in round 5: left out of ``to_dict`` at their defaults.
 ROUND5_FIELDS = frozenset(("from_start", "leg_soft_steps", "near_miss_mm", "near_miss_cost", "back_cost",
-                           "final_race", "final_candidates", "front_cost", "forward_near_mm",
-                           "forward_near_cost"))
+                           "final_race", "final_candidates"))
 
 
 def noise_seeds(seed: int, generation: int, trials: int) -> list[list[int]]:
@@ -136,8 +131,7 @@ class NoisyRun:
 
 def drive_noisy(world, rows, max_leg_steps: int, n_targets: int, noise_seed, max_failures: int,
                 leg_soft_steps: int = 0, near_miss_mm: float = 0.0, near_miss_cost: float = 0.0,
-                back_cost: float = 0.0, front_cost: float = 0.0, forward_near_mm: float = 0.0,
-                forward_near_cost: float = 0.0) -> NoisyRun:
+                back_cost: float = 0.0) -> NoisyRun:
     """Drive the noisy ``world`` (re-seeded with ``noise_seed``) with one genome; score the run.
 
     ``leg_soft_steps`` S > 0: a clean leg of n > S steps costs (n - S) / (max_leg_steps - S) of a
@@ -146,23 +140,17 @@ def drive_noisy(world, rows, max_leg_steps: int, n_targets: int, noise_seed, max
     obstacle costs ``near_miss_cost`` of a clean leg (the hand-written baseline never comes within
     30 mm; the evolved controllers that crash under noise often do). ``back_cost``: every backward
     motion with an obstacle beside or behind (x3, x4 or x5) costs that much (backing towards a seen
-    obstacle crashes into what the three rear rays miss). ``front_cost``: every forward motion
-    with x0 set and nothing beside or behind (x0 does not say on which side the obstacle is; the
-    baseline turns or backs off there) costs that much. ``forward_near_mm`` > 0: every forward
-    motion that ends closer than that to an obstacle, one of x0-x2 set, costs ``forward_near_cost``
-    (on top of ``near_miss_cost``; round 6)."""
+    obstacle crashes into what the three rear rays miss)."""
     rows = validate_rows(rows)
     prefix = list(noise_seed)
     res = run_course(world, truth_tables(rows, reflex=True), max_leg_steps, n_targets=n_targets,
                      skip_failed_legs=True, max_failures=max_failures, leg_noise_seed=lambda leg: [*prefix, leg],
-                     near_miss_mm=near_miss_mm, count_backs=back_cost > 0, count_front_forwards=front_cost > 0,
-                     forward_near_mm=forward_near_mm)
+                     near_miss_mm=near_miss_mm, count_backs=back_cost > 0)
     fitness = model_free_fitness(res.targets_reached, res.final_distance_mm, world.arena.size_mm,
                                  res.steps, max_run_steps(max_leg_steps, n_targets))
     if 0 < leg_soft_steps < max_leg_steps:
         fitness -= sum(max(n - leg_soft_steps, 0) for n in res.leg_steps) / (max_leg_steps - leg_soft_steps)
     fitness -= near_miss_cost * res.near_misses + back_cost * res.obstacle_backs
-    fitness -= front_cost * res.front_forwards + forward_near_cost * res.forward_near_misses
     return NoisyRun(
         fitness=fitness, clean_legs=int(res.targets_reached), failed_legs=int(res.failed_legs),
         steps=int(res.steps), failure_state=int(res.failure_states[0]) if res.failure_states else None,
@@ -235,8 +223,7 @@ def _noisy_world(arena: str, seed=0):
 def _drive_one(task) -> NoisyRun:
     arena, max_leg_steps, n_targets, rows, noise_seed, stage = task
     return drive_noisy(_noisy_world(arena), rows, max_leg_steps, n_targets, noise_seed, stage.max_failures,
-                       stage.leg_soft_steps, stage.near_miss_mm, stage.near_miss_cost, stage.back_cost,
-                       stage.front_cost, stage.forward_near_mm, stage.forward_near_cost)
+                       stage.leg_soft_steps, stage.near_miss_mm, stage.near_miss_cost, stage.back_cost)
 
 
 def _tasks(stage: NoisyStage, arena: str, max_leg_steps: int, n_targets: int, genomes, seeds) -> list[tuple]:
@@ -385,16 +372,6 @@ def add_noisy_arguments(parser) -> None:
                              "each; the one with the fewest failed legs is the result (0: none)")
     parser.add_argument("--noisy-final-candidates", type=int, default=_DEFAULT.final_candidates,
                         help="noisy stage: how many of the last distinct elites the final race takes")
-
-
-    parser.add_argument("--noisy-front-cost", type=float, default=_DEFAULT.front_cost,
-                        help="noisy stage: a forward motion with an obstacle ahead (x0) and none beside or "
-                             "behind costs this much of a leg (0: none)")
-    parser.add_argument("--noisy-forward-near-mm", type=float, default=_DEFAULT.forward_near_mm,
-                        help="noisy stage: a forward motion ending closer than this to an obstacle seen ahead "
-                             "(x0-x2) costs --noisy-forward-near-cost of a leg (0: none)")
-    parser.add_argument("--noisy-forward-near-cost", type=float, default=_DEFAULT.forward_near_cost,
-                        help="noisy stage: the cost of one forward near miss, in clean legs")
 
 
 def stage_from_args(args) -> NoisyStage:

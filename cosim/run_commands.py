@@ -224,7 +224,6 @@ def cmd_offline(args, extras: dict, sub=None) -> int:
                         ("noisy_max_generations", 1), ("noisy_race", 0), ("noisy_budget", 0),
                         ("noisy_leg_soft_steps", 0), ("noisy_final_race", 0), ("noisy_near_miss_mm", 0),
                         ("noisy_near_miss_cost", 0), ("noisy_back_cost", 0), ("noisy_final_candidates", 1),
-                        ("noisy_front_cost", 0), ("noisy_forward_near_mm", 0), ("noisy_forward_near_cost", 0),
                         ("transfer_trials", 0), ("transfer_leg_steps", 0)):
         if getattr(args, name) < least:
             raise UserError(f"--{name.replace('_', '-')} must be at least {least}, got {getattr(args, name)!r}")

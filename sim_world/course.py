@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ga.motions import X_BACK, X_FRONT, X_FRONT_LEFT, X_FRONT_RIGHT, X_LEFT, X_RIGHT, Motion
+from ga.motions import X_BACK, X_LEFT, X_RIGHT, Motion
 from sim_world.arena import N_POSITIONS, Arena
 from sim_world.world import World
 
@@ -31,8 +31,6 @@ from sim_world.world import World
 DEFAULT_MAX_LEG_STEPS = 500
 _BACKWARD = frozenset((Motion.BACKWARD, Motion.BACKWARD_LEFT, Motion.BACKWARD_RIGHT))
 _SIDE_OR_BACK = (1 << X_LEFT) | (1 << X_RIGHT) | (1 << X_BACK)
-_FORWARD = frozenset((Motion.FORWARD, Motion.FORWARD_LEFT, Motion.FORWARD_RIGHT))
-_AHEAD = (1 << X_FRONT) | (1 << X_FRONT_LEFT) | (1 << X_FRONT_RIGHT)
 
 
 @dataclass(frozen=True)
@@ -86,8 +84,6 @@ class CourseResult:
     failure_states: list[int] = field(default_factory=list)  # the state each failed leg ended in
     near_misses: int = 0  # motions that ended with the bumper closer than near_miss_mm to an obstacle
     obstacle_backs: int = 0  # backward motions executed with an obstacle beside or behind (count_backs)
-    front_forwards: int = 0  # forward motions with x0 set and nothing beside or behind (count_front_forwards)
-    forward_near_misses: int = 0  # forward motions ending within forward_near_mm, an obstacle ahead
 
 
 def run_course(
@@ -103,8 +99,6 @@ def run_course(
     leg_noise_seed=None,
     near_miss_mm: float = 0.0,
     count_backs: bool = False,
-    count_front_forwards: bool = False,
-    forward_near_mm: float = 0.0,
 ) -> CourseResult:
     """Run the motion table ``table`` ((256,) ints, reflex already applied) through the course.
 
@@ -119,11 +113,7 @@ def run_course(
     ``near_miss_mm`` > 0: count the motions (crashed ones excluded) after which the bumper is
     closer than this to an obstacle (``near_misses``; docs/offline.md round 5). ``count_backs``:
     count the backward motions executed with an obstacle beside or behind (x3, x4 or x5 set;
-    ``obstacle_backs``). ``count_front_forwards``: count the forward motions (forward,
-    forward-left/right) executed with x0 set and x3, x4, x5 clear (``front_forwards``: an obstacle
-    straight ahead, on a side x0 does not tell, and no wall beside to follow). ``forward_near_mm`` > 0:
-    count the forward motions that end with the bumper closer than this to an obstacle and one of
-    x0, x1, x2 set (``forward_near_misses``; docs/offline.md round 6).
+    ``obstacle_backs``).
     """
     if max_leg_steps < 1:
         raise ValueError(f"max_leg_steps must be >= 1, got {max_leg_steps!r}")
@@ -171,12 +161,6 @@ def run_course(
                 res.obstacle_backs += 1
             if near_miss_mm and not out.crashed and world.bumper_clearance < near_miss_mm:
                 res.near_misses += 1
-            if (count_front_forwards or forward_near_mm) and a in _FORWARD:
-                if count_front_forwards and s >> X_FRONT & 1 and not s & _SIDE_OR_BACK:
-                    res.front_forwards += 1
-                if (forward_near_mm and not out.crashed and s2 & _AHEAD
-                        and world.bumper_clearance < forward_near_mm):
-                    res.forward_near_misses += 1
             if out.crashed:
                 res.crashes += 1
                 if skip_failed_legs:

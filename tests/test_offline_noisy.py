@@ -223,28 +223,6 @@ def test_backward_motions_beside_or_behind_an_obstacle_are_counted_and_cost_fitn
     assert costly.steps == plain.steps and costly.fitness < plain.fitness
 
 
-def test_forward_motions_towards_an_obstacle_ahead_are_counted_and_cost_fitness():
-    from sim_world.baseline import baseline_table
-
-    world = World("one_obstacle")
-    forward = _forward_table()
-    res = run_course(world, forward, 60, n_targets=3, skip_failed_legs=True, count_front_forwards=True,
-                     forward_near_mm=300.0)
-    assert 0 < res.front_forwards <= res.steps and 0 < res.forward_near_misses <= res.steps
-    plain = run_course(world, forward, 60, n_targets=3, skip_failed_legs=True)
-    assert (plain.front_forwards, plain.forward_near_misses) == (0, 0) and plain.steps == res.steps
-    # The hand-written baseline turns or backs off when x0 is the only side it sees.
-    assert run_course(world, baseline_table(), 150, n_targets=4, count_front_forwards=True).front_forwards == 0
-    noisy = World("one_obstacle", noise=DEFAULT_NOISE)
-    rows = np.zeros(50, dtype=np.uint32)  # the reflex alone: forward whenever the ball is ahead
-    plain = drive_noisy(noisy, rows, 60, 3, [1, 2], 4)
-    for costly in (drive_noisy(noisy, rows, 60, 3, [1, 2], 4, front_cost=0.5),
-                   drive_noisy(noisy, rows, 60, 3, [1, 2], 4, forward_near_mm=300.0, forward_near_cost=0.5)):
-        assert costly.steps == plain.steps and costly.fitness < plain.fitness
-    with pytest.raises(ValueError, match="front_cost"):
-        NoisyStage(trials=1, front_cost=-1.0)
-
-
 def _stage_of(options: dict) -> NoisyStage:
     return NoisyStage(**{k[len("noisy_"):]: v for k, v in options.items() if k.startswith("noisy_")})
 
