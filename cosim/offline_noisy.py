@@ -330,11 +330,12 @@ def transfer(genome_hex: str | None, arena: str, max_leg_steps: int, n_targets: 
 
 # The noisy stage of ``ehw offline`` (``make offline``) by default, with a leg limit of
 # ROBUST_MAX_LEG_STEPS (issue 17, docs/offline.md rounds 5 and 6: configuration O, the evolution in
-# the noisy world from the first generation). ``--noisy-trials 0 --max-leg-steps 150``
+# the noisy world from the first generation, with round 6's final race on 20 seeds, Q;
+# experiments/offline_round6.toml). ``--noisy-trials 0 --max-leg-steps 150``
 # (experiments/offline_paper.toml) is the paper's noise-free method, and `run_offline`'s default.
 ROBUST_STAGE = NoisyStage(trials=1, race=4, from_start=True, max_generations=5000, budget=9_000_000,
                           accept_runs=40, leg_soft_steps=100, near_miss_mm=50.0, near_miss_cost=0.1,
-                          back_cost=0.02, final_race=10, final_candidates=8)
+                          back_cost=0.02, final_race=20, final_candidates=8)
 ROBUST_MAX_LEG_STEPS = 200
 _DEFAULT = ROBUST_STAGE
 

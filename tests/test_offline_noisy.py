@@ -229,6 +229,7 @@ def _stage_of(options: dict) -> NoisyStage:
 
 def test_the_config_files_name_only_offline_options_and_the_default_is_the_robust_stage():
     import argparse
+    import dataclasses
     import tomllib
     from pathlib import Path
 
@@ -242,10 +243,13 @@ def test_the_config_files_name_only_offline_options_and_the_default_is_the_robus
     assert _stage_of(defaults) == ROBUST_STAGE and defaults["max_leg_steps"] == ROBUST_MAX_LEG_STEPS
     assert defaults["transfer_leg_steps"] == 0  # the transfer at the run's own leg limit
     experiments = Path(__file__).parents[1] / "experiments"
-    # ... configuration O of round 5, whose file holds the same values ...
+    # ... round 6's Q, whose file spells it out, and round 5's O, the same but a final race on 10 seeds ...
+    cfg = tomllib.loads((experiments / "offline_round6.toml").read_text())
+    assert set(cfg) <= dests and cfg["max_leg_steps"] == ROBUST_MAX_LEG_STEPS
+    assert _stage_of({**vars(parser.parse_args(["--noisy-trials", "0"])), **cfg}) == ROBUST_STAGE
     cfg = tomllib.loads((experiments / "offline_round5.toml").read_text())
     assert set(cfg) <= dests and cfg["noisy_from_start"] is True and cfg["noisy_trials"] == 1
-    assert _stage_of({**defaults, **cfg}) == ROBUST_STAGE and cfg["max_leg_steps"] == ROBUST_MAX_LEG_STEPS
+    assert _stage_of({**defaults, **cfg}) == dataclasses.replace(ROBUST_STAGE, final_race=10)
     # ... and the paper's noise-free method, run_offline's default, is a file away.
     cfg = tomllib.loads((experiments / "offline_paper.toml").read_text())
     assert set(cfg) <= dests and cfg["max_leg_steps"] == offline.DEFAULT_MAX_LEG_STEPS
