@@ -5,13 +5,15 @@ individual of every generation drives the robot from the start pose through the 
 poses (:func:`evaluate`, scored by `ga.model_free.model_free_fitness`). The run stops when the best individual reaches the target 64
 times, or at a generation cap. Then the best controller is "downloaded to the real robot": it
 drives the noisy world (`sim_world.world.DEFAULT_NOISE`) and we count the targets it reaches
-before its first crash (20 noise seeds). With ``noisy=NoisyStage(trials=K)`` (``--noisy-trials``,
-off by default) the GA goes on in the noisy world once the noise-free best reaches every target
-(`cosim.offline_noisy`, docs/offline.md round 3), or from the first generation with
-``--noisy-from-start`` (round 5).
+before its first crash (20 noise seeds). With ``noisy=NoisyStage(trials=K)`` (``--noisy-trials``;
+none in `run_offline`) the GA goes on in the noisy world once the noise-free best reaches every
+target (`cosim.offline_noisy`, docs/offline.md round 3), or from the first generation with
+``--noisy-from-start`` (round 5). ``ehw offline`` runs the latter by default (round 6:
+`cosim.offline_noisy.ROBUST_STAGE`, leg limit 200); the paper's method is
+``--config experiments/offline_paper.toml``.
 
-    python -m cosim.offline --seed 1 [--generations-cap G] [--workers W] [--resume]
-                            [--out results/model_free] [--arena NAME] [--max-leg-steps N]
+    ehw offline --seed 1 [--generations-cap G] [--workers W] [--resume]
+                [--out results/model_free] [--arena NAME] [--max-leg-steps N] [--config FILE]
 
 Design:
 - Evaluation is a pure function of (genome, arena, step limits): the world is noise-free and its
