@@ -42,7 +42,7 @@ help:
 	@echo "               ARGS=\"--ga hardware\": the learning engine on every backend (serial: one ulx3s-learner on PORT; uart: LearnerLinkTop in Verilator)"
 	@echo "make test      the whole test suite (creates .venv, installs iverilog if missing)"
 	@echo "make test-fast the suite without the cocotb/Verilator simulator builds (the inner loop)"
-	@echo "make offline   ehw offline: off-line model-free experiment"
+	@echo "make offline   ehw offline: off-line model-free experiment (issue 17's noisy stage; the paper's method: ARGS=\"--config experiments/offline_paper.toml\")"
 	@echo "make compare   ehw compare: every method over SEEDS seeds -> results/compare/latest/compare.{md,json,png} (JOBS, ARGS=\"--methods ... --cluster local\")"
 	@echo "make rl        install the optional deep-RL extra (stable-baselines3, CPU torch) for --methods dqn,ppo"
 	@echo "make verilog   build/verilog/*.v"

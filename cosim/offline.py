@@ -5,13 +5,15 @@ individual of every generation drives the robot from the start pose through the 
 poses (:func:`evaluate`, scored by `ga.model_free.model_free_fitness`). The run stops when the best individual reaches the target 64
 times, or at a generation cap. Then the best controller is "downloaded to the real robot": it
 drives the noisy world (`sim_world.world.DEFAULT_NOISE`) and we count the targets it reaches
-before its first crash (20 noise seeds). With ``noisy=NoisyStage(trials=K)`` (``--noisy-trials``,
-off by default) the GA goes on in the noisy world once the noise-free best reaches every target
-(`cosim.offline_noisy`, docs/offline.md round 3), or from the first generation with
-``--noisy-from-start`` (round 5).
+before its first crash (20 noise seeds). With ``noisy=NoisyStage(trials=K)`` (``--noisy-trials``;
+none in `run_offline`) the GA goes on in the noisy world once the noise-free best reaches every
+target (`cosim.offline_noisy`, docs/offline.md round 3), or from the first generation with
+``--noisy-from-start`` (round 5). ``ehw offline`` runs the latter by default (round 6:
+`cosim.offline_noisy.ROBUST_STAGE`, leg limit 200); the paper's method is
+``--config experiments/offline_paper.toml``.
 
-    python -m cosim.offline --seed 1 [--generations-cap G] [--workers W] [--resume]
-                            [--out results/model_free] [--arena NAME] [--max-leg-steps N]
+    ehw offline --seed 1 [--generations-cap G] [--workers W] [--resume]
+                [--out results/model_free] [--arena NAME] [--max-leg-steps N] [--config FILE]
 
 Design:
 - Evaluation is a pure function of (genome, arena, step limits): the world is noise-free and its
@@ -40,8 +42,8 @@ from typing import Callable
 import numpy as np
 
 from cosim.checkpoint import load_checkpoint, save_checkpoint
-from cosim.offline_noisy import (TRANSFER_TRIALS, NoisyStage, Records, add_noisy_arguments, final_race,
-                                 load_arena_arg, noisy_generation, table_key, transfer)
+from cosim.offline_noisy import (ROBUST_MAX_LEG_STEPS, TRANSFER_TRIALS, NoisyStage, Records, add_noisy_arguments,
+                                 final_race, load_arena_arg, noisy_generation, table_key, transfer)
 from cosim.offline_report import plot_results, seeds_table  # noqa: F401 (seeds_table: the API)
 from cosim.runs import atomic_savefig, atomic_write_json
 from ga.evolution import GAConfig, GeneticAlgorithm
@@ -56,9 +58,10 @@ KIND = "model_free"
 DEFAULT_OUT = Path("results/model_free")
 DEFAULT_ARENA = "default"
 DEFAULT_GENERATIONS_CAP = 3000
-# Step limit of one leg: see docs/offline.md for the measurements behind it.
+# Step limit of one leg of the paper's noise-free method: see docs/offline.md for the measurements
+# behind it. (`ehw offline` runs the noisy stage by default, at ROBUST_MAX_LEG_STEPS.)
 DEFAULT_MAX_LEG_STEPS = 150
-# The noisy stage after the noise-free evolution (cosim.offline_noisy; docs/offline.md, issue 17).
+# run_offline's noisy stage: none, the paper's method (cosim.offline_noisy; docs/offline.md, issue 17).
 DEFAULT_NOISY = NoisyStage()
 
 def default_ga_config(**overrides) -> GAConfig:
@@ -477,8 +480,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
                         help="stop after this many generations")
     parser.add_argument("--workers", type=int, default=1, help="evaluation processes (1: serial)")
     parser.add_argument("--arena", default=DEFAULT_ARENA, help="arena name or .json path")
-    parser.add_argument("--max-leg-steps", type=int, default=DEFAULT_MAX_LEG_STEPS,
-                        help="step limit of one leg")
+    parser.add_argument("--max-leg-steps", type=int, default=ROBUST_MAX_LEG_STEPS,
+                        help=f"step limit of one leg (the paper's noise-free method: {DEFAULT_MAX_LEG_STEPS}, "
+                             "--config experiments/offline_paper.toml)")
     add_noisy_arguments(parser)
     parser.add_argument("--transfer-trials", type=int, default=TRANSFER_TRIALS,
                         help="noisy-world runs of the final controller (noise seeds seed*1000+i)")

@@ -45,6 +45,7 @@ Every motion of every noisy run is an interaction of the off-line method (issue 
 
 from __future__ import annotations
 
+import argparse
 import hashlib
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
@@ -327,15 +328,25 @@ def transfer(genome_hex: str | None, arena: str, max_leg_steps: int, n_targets: 
     }
 
 
-_DEFAULT = NoisyStage()
+# The noisy stage of ``ehw offline`` (``make offline``) by default, with a leg limit of
+# ROBUST_MAX_LEG_STEPS (issue 17, docs/offline.md rounds 5 and 6: configuration O, the evolution in
+# the noisy world from the first generation, with round 6's final race on 20 seeds, Q;
+# experiments/offline_round6.toml). ``--noisy-trials 0 --max-leg-steps 150``
+# (experiments/offline_paper.toml) is the paper's noise-free method, and `run_offline`'s default.
+ROBUST_STAGE = NoisyStage(trials=1, race=4, from_start=True, max_generations=5000, budget=9_000_000,
+                          accept_runs=40, leg_soft_steps=100, near_miss_mm=50.0, near_miss_cost=0.1,
+                          back_cost=0.02, final_race=20, final_candidates=8)
+ROBUST_MAX_LEG_STEPS = 200
+_DEFAULT = ROBUST_STAGE
 
 
 def add_noisy_arguments(parser) -> None:
     """The noisy stage's options of ``ehw offline`` (``--noisy-*``, one per :class:`NoisyStage`
-    field; :func:`stage_from_args` reads them back)."""
+    field; :func:`stage_from_args` reads them back). Their defaults are ROBUST_STAGE's."""
     parser.add_argument("--noisy-trials", type=int, default=_DEFAULT.trials,
                         help="the noisy stage (cosim.offline_noisy): common noise seeds per generation "
-                             "once the noise-free best reaches every target (0: none)")
+                             "(from the first generation with --noisy-from-start, else once the noise-free "
+                             "best reaches every target; 0: none, the paper's noise-free method)")
     parser.add_argument("--noisy-accept-runs", type=int, default=_DEFAULT.accept_runs,
                         help="noisy stage: a controller with this many noisy runs, all clean, ends the run")
     parser.add_argument("--noisy-max-failures", type=int, default=_DEFAULT.max_failures,
@@ -346,8 +357,8 @@ def add_noisy_arguments(parser) -> None:
                         help="noisy stage: seeds of the champion/challenger race for the elite (0: none)")
     parser.add_argument("--noisy-budget", type=int, default=_DEFAULT.budget,
                         help="noisy stage: it ends once it has spent this many interactions (0: no limit)")
-    parser.add_argument("--noisy-from-start", action="store_true",
-                        help="noisy stage: from generation 0, no noise-free stage (docs/offline.md round 5)")
+    parser.add_argument("--noisy-from-start", action=argparse.BooleanOptionalAction, default=_DEFAULT.from_start,
+                        help="noisy stage: from the first generation, no noise-free stage (docs/offline.md round 5)")
     parser.add_argument("--noisy-leg-soft-steps", type=int, default=_DEFAULT.leg_soft_steps,
                         help="noisy stage: a clean leg of n > S steps costs (n - S) / (limit - S) of a leg (0: none)")
     parser.add_argument("--noisy-near-miss-mm", type=float, default=_DEFAULT.near_miss_mm,

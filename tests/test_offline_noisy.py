@@ -223,15 +223,36 @@ def test_backward_motions_beside_or_behind_an_obstacle_are_counted_and_cost_fitn
     assert costly.steps == plain.steps and costly.fitness < plain.fitness
 
 
-def test_the_round5_config_file_names_only_offline_options():
+def _stage_of(options: dict) -> NoisyStage:
+    return NoisyStage(**{k[len("noisy_"):]: v for k, v in options.items() if k.startswith("noisy_")})
+
+
+def test_the_config_files_name_only_offline_options_and_the_default_is_the_robust_stage():
     import argparse
+    import dataclasses
     import tomllib
     from pathlib import Path
 
     from cosim import offline
+    from cosim.offline_noisy import ROBUST_MAX_LEG_STEPS, ROBUST_STAGE
 
-    dests = {a.dest for a in offline.add_arguments(argparse.ArgumentParser())._actions}
-    cfg = tomllib.loads((Path(__file__).parents[1] / "experiments/offline_round5.toml").read_text())
+    parser = offline.add_arguments(argparse.ArgumentParser())
+    dests = {a.dest for a in parser._actions}
+    defaults = vars(parser.parse_args([]))
+    # `ehw offline` with no option: the noisy stage from the first generation (issue 17, round 6) ...
+    assert _stage_of(defaults) == ROBUST_STAGE and defaults["max_leg_steps"] == ROBUST_MAX_LEG_STEPS
+    assert defaults["transfer_leg_steps"] == 0  # the transfer at the run's own leg limit
+    experiments = Path(__file__).parents[1] / "experiments"
+    # ... round 6's Q, whose file spells it out, and round 5's O, the same but a final race on 10 seeds ...
+    cfg = tomllib.loads((experiments / "offline_round6.toml").read_text())
+    assert set(cfg) <= dests and cfg["max_leg_steps"] == ROBUST_MAX_LEG_STEPS
+    assert _stage_of({**vars(parser.parse_args(["--noisy-trials", "0"])), **cfg}) == ROBUST_STAGE
+    cfg = tomllib.loads((experiments / "offline_round5.toml").read_text())
     assert set(cfg) <= dests and cfg["noisy_from_start"] is True and cfg["noisy_trials"] == 1
-    NoisyStage(**{k[len("noisy_"):]: v for k, v in cfg.items() if k.startswith("noisy_")
-                  and k[len("noisy_"):] in NoisyStage.__dataclass_fields__})
+    assert _stage_of({**defaults, **cfg}) == dataclasses.replace(ROBUST_STAGE, final_race=10)
+    # ... and the paper's noise-free method, run_offline's default, is a file away.
+    cfg = tomllib.loads((experiments / "offline_paper.toml").read_text())
+    assert set(cfg) <= dests and cfg["max_leg_steps"] == offline.DEFAULT_MAX_LEG_STEPS
+    assert _stage_of({**defaults, **cfg}).trials == offline.DEFAULT_NOISY.trials == 0
+    assert "noisy_stage" not in offline.run_config(1, "default", 150, 64, offline.default_ga_config(),
+                                                   _stage_of({**defaults, **cfg}))
