@@ -30,7 +30,11 @@ in S" holds, and N, the fitness's normalisation, counts them); ``known`` writes 
 observation only when both states are already in S (the robot has been in them; N unchanged).
 A pair that is its own mirror image (m(s) = s, m(a) = a) is not written twice. The variant
 ``mirror`` takes the rule from ``--param mirror=fill|crash|full``, to combine it with another
-round's variant (``--param base=likely`` etc. is not offered: one rule at a time).
+round's variant (e.g. ``likely --param mirror=fill``).
+
+The second idea of the round, not the mirror: ``likely_untried`` subtracts both round 10's
+``likely`` penalty and round 11's revised distance term (``distance``) from the SPEC fitness, the
+two best ratios on the screening seeds (``--param cycles=3 --param untried=0.5``: 0.90 and 0.89).
 """
 
 from __future__ import annotations
@@ -49,12 +53,13 @@ from experiments.online_round11 import DEFAULT_PARAMS as R11_PARAMS  # noqa: E40
 from experiments.online_round11 import VARIANTS as R11_VARIANTS  # noqa: E402
 from experiments.online_round11 import Round11  # noqa: E402
 from ga.motions import MIRROR_MOTION, MIRROR_STATE, N_MOTIONS, N_STATES  # noqa: E402
+from ga.truth_table import truth_tables  # noqa: E402
 
 DEFAULT_OUT = Path("build/experiments/round12.jsonl")
 # their ``default`` rows: today's defaults (round 9's: seeds 1-16, round 10's: 17-24, round 11's: 141-160)
 REFERENCES = tuple(Path(f"build/experiments/round{k}.jsonl") for k in (9, 10, 11))
 MIRROR_RULES = ("fill", "crash", "full")
-VARIANTS = (*R11_VARIANTS, *(f"mirror_{rule}" for rule in MIRROR_RULES))
+VARIANTS = (*R11_VARIANTS, *(f"mirror_{rule}" for rule in MIRROR_RULES), "likely_untried")
 STATE_RULES = ("add", "known")
 HELD_OUT = range(161, 181)  # never used to choose (101-120: rounds 8-10's defaults; 141-160: round 11's)
 R12_PARAMS = {"mirror": "", "states": "add", "refresh": 0}
@@ -120,7 +125,22 @@ class Round12(Round11):
     def penalty(self, pop: np.ndarray, n: int) -> np.ndarray:
         if self.variant.startswith("mirror"):
             return np.zeros(len(pop))  # the SPEC fitness, to the bit
+        if self.variant == "likely_untried":
+            return self.penalty_of(truth_tables(pop, reflex=self.config.reflex), n)
         return super().penalty(pop, n)
+
+    def penalty_of(self, tables: np.ndarray, n: int) -> np.ndarray:
+        if self.variant != "likely_untried":
+            return super().penalty_of(tables, n)
+        # round 10's likely cycles plus round 11's revised distance term, each as its round has it
+        return self._penalty_as("likely", tables, n) + self._penalty_as("distance", tables, n)
+
+    def _penalty_as(self, variant: str, tables: np.ndarray, n: int) -> np.ndarray:
+        self.variant = variant  # an instance attribute over the class's, for the one call
+        try:
+            return Round11.penalty_of(self, tables, n)
+        finally:
+            del self.variant
 
     def extra_figures(self) -> dict:
         model = self.mirror
