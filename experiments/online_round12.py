@@ -88,8 +88,14 @@ class Round12(Round11):
         self.mirror_log: Counter = Counter()
 
     def step(self, motion, record=True):
-        s = self.state
+        s, model = self.state, self.mirror
+        # instrumentation: does the executed pair's entry, real or mirrored, say what happens?
+        source = "" if not model.valid[s, motion] else "real" if self.real[s, motion] else "mirrored"
+        said = (bool(model.crash[s, motion]), int(model.next_state[s, motion]))
         step = super().step(motion, record)
+        if source:
+            outcome = (bool(step.crashed), s if step.crashed else int(step.state))
+            self.mirror_log[f"{source}_{'confirmed' if said == outcome else 'surprise'}"] += 1
         self.real[s, motion] = True
         self.real_states[[s, step.state]] = True
         if self.rule:
