@@ -32,6 +32,15 @@ A pair that is its own mirror image (m(s) = s, m(a) = a) is not written twice. T
 ``mirror`` takes the rule from ``--param mirror=fill|crash|full``, to combine it with another
 round's variant (e.g. ``likely --param mirror=fill``).
 
+The round's symmetry check (``experiments/online_round12_symmetry.py``) found the mirrored
+*latest* outcome a poor prediction and the mirrored *most frequent* outcome nearly as good as the
+pair's own; variant ``mode``: the host counts each pair's non-crash outcomes and keeps each
+non-crash entry at its most frequent outcome (ties: the latest met; one more write through the
+board's ``observe`` after the real one when it differs), a change of SPEC section 7's "most recent
+outcome wins"; crash entries stay permanent. ``pool`` = 1: a real outcome also counts, mirrored,
+for the mirrored pair (whose entry then holds its pooled most frequent outcome; a new entry adds
+its states to S).
+
 The second idea of the round, not the mirror: ``likely_untried`` subtracts both round 10's
 ``likely`` penalty and round 11's revised distance term (``distance``) from the SPEC fitness, the
 two best ratios on the screening seeds (``--param cycles=3 --param untried=0.5``: 0.90 and 0.89).
@@ -59,10 +68,10 @@ DEFAULT_OUT = Path("build/experiments/round12.jsonl")
 # their ``default`` rows: today's defaults (round 9's: seeds 1-16, round 10's: 17-24, round 11's: 141-160)
 REFERENCES = tuple(Path(f"build/experiments/round{k}.jsonl") for k in (9, 10, 11))
 MIRROR_RULES = ("fill", "crash", "full")
-VARIANTS = (*R11_VARIANTS, *(f"mirror_{rule}" for rule in MIRROR_RULES), "likely_untried")
+VARIANTS = (*R11_VARIANTS, *(f"mirror_{rule}" for rule in MIRROR_RULES), "likely_untried", "mode")
 STATE_RULES = ("add", "known")
 HELD_OUT = range(161, 181)  # never used to choose (101-120: rounds 8-10's defaults; 141-160: round 11's)
-R12_PARAMS = {"mirror": "", "states": "add", "refresh": 0}
+R12_PARAMS = {"mirror": "", "states": "add", "refresh": 0, "pool": 0}
 DEFAULT_PARAMS = {**R11_PARAMS, **R12_PARAMS}
 
 
@@ -86,6 +95,8 @@ class Round12(Round11):
         self.real_states = np.zeros(N_STATES, dtype=bool)  # states the robot has been in
         self.real_states[self.state] = True
         self.mirror_log: Counter = Counter()
+        self.tallies: dict[tuple[int, int], dict[int, tuple[int, int]]] = {}  # mode: outcome -> (count, last met)
+        self.clock = 0
 
     def step(self, motion, record=True):
         s, model = self.state, self.mirror
@@ -100,7 +111,34 @@ class Round12(Round11):
         self.real_states[[s, step.state]] = True
         if self.rule:
             self.write_mirrored(s, int(motion), int(step.state), bool(step.crashed))
+        if self.variant == "mode":
+            self.write_modes(s, int(motion), int(step.state), bool(step.crashed))
         return step
+
+    def write_modes(self, s: int, a: int, s2: int, crashed: bool) -> None:
+        """``mode``: count the outcome (and with ``pool`` its mirror image for the mirrored pair),
+        then make each non-crash entry concerned hold its most frequent outcome (ties: the latest
+        met), written through the board's ``observe`` like an observation."""
+        if crashed:
+            return  # the entry is a crash now, for ever
+        pairs = [(s, a, s2)]
+        ms, ma, ms2, _ = mirrored(s, a, s2, False)
+        if self.params["pool"] and (ms, ma) != (s, a):
+            pairs.append((ms, ma, ms2))
+        model = self.mirror
+        for ps, pa, nxt in pairs:
+            self.clock += 1
+            tally = self.tallies.setdefault((ps, pa), {})
+            count, _ = tally.get(nxt, (0, 0))
+            tally[nxt] = (count + 1, self.clock)
+            if model.crash[ps, pa]:
+                continue
+            best = max(tally, key=tally.get)  # (count, last met)
+            if model.valid[ps, pa] and int(model.next_state[ps, pa]) == best:
+                continue
+            self.evaluator.observe(ps, pa, best, False)
+            model.observe(ps, pa, best, False)
+            self.mirror_log["mode_written" if (ps, pa) == (s, a) else "mode_mirrored"] += 1
 
     def write_mirrored(self, s: int, a: int, s2: int, crashed: bool) -> None:
         """The mirrored observation, sent to the board and the host copy when the rule allows it."""
@@ -129,7 +167,7 @@ class Round12(Round11):
             log["changed_entry"] += 1
 
     def penalty(self, pop: np.ndarray, n: int) -> np.ndarray:
-        if self.variant.startswith("mirror"):
+        if self.variant.startswith("mirror") or self.variant == "mode":
             return np.zeros(len(pop))  # the SPEC fitness, to the bit
         if self.variant == "likely_untried":
             return self.penalty_of(truth_tables(pop, reflex=self.config.reflex), n)
