@@ -370,7 +370,8 @@ def test_online_round12_mirrored_writes_reach_the_board_and_the_host_copy(tmp_pa
     round12 = _script("online_round12")
     assert round12.mirrored(0b000010 | 1 << 6, 4, 0b000100 | 3 << 6, False) == (0b000100 | 3 << 6, 5, 0b000010 | 1 << 6, False)
     assert round12.mirrored(0b001000, 6, 0b001001, True) == (0b010000, 7, 0b010000, True)
-    for variant, params in (("mirror_fill", {}), ("mirror_crash", {}), ("mirror_full", {"states": "known"})):
+    for variant, params in (("mirror_fill", {}), ("mirror_crash", {}), ("mirror_full", {"states": "known"}),
+                            ("mode", {"pool": 1})):
         config = OnlineConfig(seed=1, max_interactions=150)
         base = make_run(config)
         round12.Round12.variant, round12.Round12.params = variant, {**round12.DEFAULT_PARAMS, **params}
@@ -379,8 +380,13 @@ def test_online_round12_mirrored_writes_reach_the_board_and_the_host_copy(tmp_pa
         assert run.evaluator.model == run.mirror
         figures = run.extra_figures()["mirror"]
         assert figures["mirrored_entries"] > 0 and figures["real_pairs"] <= figures["model_transitions"]
-        if params:  # no mirrored write adds a state to S
+        if params.get("states") == "known":  # no mirrored write adds a state to S
             assert figures["states_never_visited"] == 0
+        if variant == "mode":  # every non-crash entry the robot executed holds its most frequent outcome
+            assert figures["mode_written"] > 0
+            for (s, a), tally in run.tallies.items():
+                if run.real[s, a] and not run.mirror.crash[s, a]:
+                    assert run.mirror.next_state[s, a] == max(tally, key=tally.get)
     out = tmp_path / "r12.jsonl"
     for argv in (["default"], ["mirror", "--param", 'mirror=""'], ["mirror_fill"]):
         assert round12.main([argv[0], "1", "--budget", "150", "--out", str(out), *argv[1:]]) == 0
