@@ -19,7 +19,7 @@ both hold the same model. The rule that decides whether the mirrored observation
   wins; with ``refresh`` = 1 a mirrored entry is also updated by later mirrored observations
   until the robot itself executes that pair);
 - ``mirror_crash``: only crashes, into unknown or non-crash entries (crash entries stay
-  permanent);
+  permanent); with ``unknown_only`` = 1 into unknown entries only;
 - ``mirror_full``: every mirrored observation, applied like a real one (most recent wins, a
   crash entry is never overwritten).
 
@@ -71,7 +71,7 @@ MIRROR_RULES = ("fill", "crash", "full")
 VARIANTS = (*R11_VARIANTS, *(f"mirror_{rule}" for rule in MIRROR_RULES), "likely_untried", "mode")
 STATE_RULES = ("add", "known")
 HELD_OUT = range(161, 181)  # never used to choose (101-120: rounds 8-10's defaults; 141-160: round 11's)
-R12_PARAMS = {"mirror": "", "states": "add", "refresh": 0, "pool": 0}
+R12_PARAMS = {"mirror": "", "states": "add", "refresh": 0, "pool": 0, "unknown_only": 0}
 DEFAULT_PARAMS = {**R11_PARAMS, **R12_PARAMS}
 
 
@@ -147,7 +147,7 @@ class Round12(Round11):
         if (ms, ma) == (s, a):
             return  # its own mirror image: the real observation is this entry
         known = bool(model.valid[ms, ma])
-        if self.rule == "crash" and not crashed:
+        if self.rule == "crash" and (not crashed or (known and self.params["unknown_only"])):
             return
         if self.rule == "fill" and known and (self.real[ms, ma] or not self.params["refresh"]):
             return

@@ -396,3 +396,23 @@ def test_online_round12_mirrored_writes_reach_the_board_and_the_host_copy(tmp_pa
     capsys.readouterr()
     assert round12.main(["--table", str(out)]) == 0
     assert "| mirror_fill | 1: **" in capsys.readouterr().out
+
+
+def test_online_round12_symmetry_check_scores_the_predictions(capsys):
+    """Round 12's symmetry check: on a world that is its own mirror image (each outcome followed by
+    the mirrored pair's mirrored outcome) the mirrored prediction is as good as the real one."""
+    from ga.motions import MIRROR_MOTION, MIRROR_STATE, make_state
+
+    sym = _script("online_round12_symmetry")
+    s, s2 = make_state(0b000010, 1), make_state(0b000110, 0)  # front-left obstacle, target left
+    obs = []
+    for _ in range(3):
+        obs.append((s, 4, s2, False))
+        obs.append((int(MIRROR_STATE[s]), int(MIRROR_MOTION[4]), int(MIRROR_STATE[s2]), False))
+    counts = sym.scores(obs)
+    assert counts["observations"] == 6 and counts["real_known"] == 4 and counts["mirror_known"] == 5
+    assert counts["both_known"] == 4 and counts["both_real_right"] == counts["both_mirror_right"] == 4
+    assert counts["both_pooled_mode_right"] == 4
+    assert sym.main(["--random", "300", "--seed", "1"]) == 0
+    line = json.loads(capsys.readouterr().out)
+    assert line["observations"] <= 300 and line["real_known"] >= line["real_right"]
