@@ -93,3 +93,29 @@ REFLEX_STATES = np.array([make_state(0, s) for s in range(4)], dtype=np.int64)
 # A 256-entry table: reflex motion where the reflex applies, -1 elsewhere.
 REFLEX_TABLE = np.full(N_STATES, -1, dtype=np.int16)
 REFLEX_TABLE[REFLEX_STATES] = REFLEX_MOTION
+
+
+# The robot's left-right mirror symmetry (SPEC section 4: the sensor angles and the motion set are
+# symmetric about the heading). The mirror image of a state swaps front-left/front-right and
+# left/right obstacle bits and the left/right target sectors; that of a motion swaps each left
+# turn with its right one. Every outcome the robot observes, (s, a) -> s2 or a crash, is therefore
+# evidence of (m(s), m(a)) -> m(s2) (docs/online.md, round 12). The reflex is not symmetric: with
+# the target behind it turns left in both mirror images (REFLEX_TABLE), so the mirror is a
+# statement about the world, not about the controller.
+MIRROR_SECTOR = np.array([Sector.FRONT, Sector.RIGHT, Sector.BACK, Sector.LEFT], dtype=np.uint8)
+MIRROR_MOTION = np.array([
+    Motion.FORWARD, Motion.BACKWARD, Motion.TURN_RIGHT, Motion.TURN_LEFT,
+    Motion.FORWARD_RIGHT, Motion.FORWARD_LEFT, Motion.BACKWARD_RIGHT, Motion.BACKWARD_LEFT,
+], dtype=np.uint8)
+_MIRROR_BIT = (X_FRONT, X_FRONT_RIGHT, X_FRONT_LEFT, X_RIGHT, X_LEFT, X_BACK)  # bit i goes to _MIRROR_BIT[i]
+
+
+def mirror_state(state: int) -> int:
+    """The mirror image of an 8-bit world state (obstacle bits and sector swapped left/right)."""
+    if not 0 <= state < N_STATES:
+        raise ValueError(f"a world state is in 0..{N_STATES - 1}, got {state!r}")
+    obstacles = sum(((state >> i) & 1) << j for i, j in enumerate(_MIRROR_BIT))
+    return make_state(obstacles, int(MIRROR_SECTOR[state >> SECTOR_SHIFT]))
+
+
+MIRROR_STATE = np.array([mirror_state(s) for s in range(N_STATES)], dtype=np.uint8)

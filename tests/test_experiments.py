@@ -360,3 +360,59 @@ def test_online_round11_runs_the_distance_rules(tmp_path, capsys):
     assert "| distance untried=1 | 1: **" in capsys.readouterr().out
     assert _script("online_round11_terms").main(["1", "150", "distance", "untried=1"]) == 0
     assert "| obstacle_any=1 untried=0.5 |" in capsys.readouterr().out
+
+
+def test_online_round12_mirrored_writes_reach_the_board_and_the_host_copy(tmp_path, capsys):
+    """Round 12: the mirrored observations go to the board and to the host's copy alike (the same
+    model after a lifetime); with no mirror rule the lifetime is ``default``'s, field by field."""
+    from cosim.online import OnlineConfig, make_run
+
+    round12 = _script("online_round12")
+    assert round12.mirrored(0b000010 | 1 << 6, 4, 0b000100 | 3 << 6, False) == (0b000100 | 3 << 6, 5, 0b000010 | 1 << 6, False)
+    assert round12.mirrored(0b001000, 6, 0b001001, True) == (0b010000, 7, 0b010000, True)
+    for variant, params in (("mirror_fill", {}), ("mirror_crash", {}), ("mirror_full", {"states": "known"}),
+                            ("mode", {"pool": 1})):
+        config = OnlineConfig(seed=1, max_interactions=150)
+        base = make_run(config)
+        round12.Round12.variant, round12.Round12.params = variant, {**round12.DEFAULT_PARAMS, **params}
+        run = round12.Round12(config, base.controller, base.evaluator)
+        run.run()
+        assert run.evaluator.model == run.mirror
+        figures = run.extra_figures()["mirror"]
+        assert figures["mirrored_entries"] > 0 and figures["real_pairs"] <= figures["model_transitions"]
+        if params.get("states") == "known":  # no mirrored write adds a state to S
+            assert figures["states_never_visited"] == 0
+        if variant == "mode":  # every non-crash entry the robot executed holds its most frequent outcome
+            assert figures["mode_written"] > 0
+            for (s, a), tally in run.tallies.items():
+                if run.real[s, a] and not run.mirror.crash[s, a]:
+                    assert run.mirror.next_state[s, a] == max(tally, key=tally.get)
+    out = tmp_path / "r12.jsonl"
+    for argv in (["default"], ["mirror", "--param", 'mirror=""'], ["mirror_fill"]):
+        assert round12.main([argv[0], "1", "--budget", "150", "--out", str(out), *argv[1:]]) == 0
+    runs = [json.loads(line) for line in out.read_text().splitlines()]
+    same = ("interactions", "targets", "phases", "generations", "legs", "steps", "failure_classes")
+    assert [runs[0][k] for k in same] == [runs[1][k] for k in same]
+    capsys.readouterr()
+    assert round12.main(["--table", str(out)]) == 0
+    assert "| mirror_fill | 1: **" in capsys.readouterr().out
+
+
+def test_online_round12_symmetry_check_scores_the_predictions(capsys):
+    """Round 12's symmetry check: on a world that is its own mirror image (each outcome followed by
+    the mirrored pair's mirrored outcome) the mirrored prediction is as good as the real one."""
+    from ga.motions import MIRROR_MOTION, MIRROR_STATE, make_state
+
+    sym = _script("online_round12_symmetry")
+    s, s2 = make_state(0b000010, 1), make_state(0b000110, 0)  # front-left obstacle, target left
+    obs = []
+    for _ in range(3):
+        obs.append((s, 4, s2, False))
+        obs.append((int(MIRROR_STATE[s]), int(MIRROR_MOTION[4]), int(MIRROR_STATE[s2]), False))
+    counts = sym.scores(obs)
+    assert counts["observations"] == 6 and counts["real_known"] == 4 and counts["mirror_known"] == 5
+    assert counts["both_known"] == 4 and counts["both_real_right"] == counts["both_mirror_right"] == 4
+    assert counts["both_pooled_mode_right"] == 4
+    assert sym.main(["--random", "300", "--seed", "1"]) == 0
+    line = json.loads(capsys.readouterr().out)
+    assert line["observations"] <= 300 and line["real_known"] >= line["real_right"]
