@@ -139,12 +139,12 @@ class Round11(Round10):
         return self.penalty_of(truth_tables(pop, reflex=self.config.reflex), n)
 
 
-def table(path: Path) -> str:
-    """Round 9's table, against today's defaults (the ``default`` rows of REFERENCES and this
-    file's own): the screening seeds (1-24), then the held-out seeds (HELD_OUT) on their own."""
-    reference = tuple(p for p in REFERENCES if p.exists())
+def table(path: Path, references=REFERENCES, held_out=HELD_OUT) -> str:
+    """Round 9's table, against today's defaults (the ``default`` rows of ``references`` and this
+    file's own): the screening seeds (1-24), then the held-out seeds on their own."""
+    reference = tuple(p for p in references if p.exists())
     return "\n\n".join([round9_table(path, reference, seeds=range(1, 25)),
-                          round9_table(path, reference, seeds=HELD_OUT)])
+                          round9_table(path, reference, seeds=held_out)])
 
 
 def main(argv=None) -> int:

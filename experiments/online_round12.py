@@ -57,10 +57,10 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from experiments.online_round8 import main as round8_main  # noqa: E402
-from experiments.online_round9 import table as round9_table  # noqa: E402
 from experiments.online_round11 import DEFAULT_PARAMS as R11_PARAMS  # noqa: E402
 from experiments.online_round11 import VARIANTS as R11_VARIANTS  # noqa: E402
 from experiments.online_round11 import Round11  # noqa: E402
+from experiments.online_round11 import table as round11_table  # noqa: E402
 from ga.motions import MIRROR_MOTION, MIRROR_STATE, N_MOTIONS, N_STATES  # noqa: E402
 from ga.truth_table import truth_tables  # noqa: E402
 
@@ -197,11 +197,8 @@ class Round12(Round11):
 
 
 def table(path: Path) -> str:
-    """Round 9's table, against today's defaults (the ``default`` rows of REFERENCES and this
-    file's own): the screening seeds (1-24), then the held-out seeds (HELD_OUT) on their own."""
-    reference = tuple(p for p in REFERENCES if p.exists())
-    return "\n\n".join([round9_table(path, reference, seeds=range(1, 25)),
-                        round9_table(path, reference, seeds=HELD_OUT)])
+    """Round 11's table with this round's references and held-out seeds."""
+    return round11_table(path, REFERENCES, HELD_OUT)
 
 
 def main(argv=None) -> int:
