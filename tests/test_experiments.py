@@ -6,6 +6,8 @@ import importlib.util
 import json
 from pathlib import Path
 
+import numpy as np
+
 EXPERIMENTS = Path(__file__).resolve().parent.parent / "experiments"
 
 
@@ -416,3 +418,42 @@ def test_online_round12_symmetry_check_scores_the_predictions(capsys):
     assert sym.main(["--random", "300", "--seed", "1"]) == 0
     line = json.loads(capsys.readouterr().out)
     assert line["observations"] <= 300 and line["real_known"] >= line["real_right"]
+
+
+def test_online_round14_failure_marks_the_rates_and_the_bandit_escape(tmp_path, capsys):
+    """Round 14: a failure marks the last ``horizon`` pairs of its execution phase (each once), a
+    target clears the phase's pairs; ``failrate`` subtracts the rates of the chosen motions; the
+    bandit escape picks the offered motion with the lowest rate; ``default`` is the plain lifetime."""
+    from cosim.online import OnlineConfig, make_run
+
+    r14 = _script("online_round14")
+    config = OnlineConfig(seed=1, max_interactions=150)
+    base = make_run(config)
+    r14.Round14.variant, r14.Round14.params = "failrate", {**r14.DEFAULT_PARAMS, "horizon": 2}
+    run = r14.Round14(config, base.controller, base.evaluator)
+    run.open_pairs = [(65, 0), (66, 1), (65, 0), (67, 2)]
+    run.judge_failure()
+    assert run.failed[67, 2] == 1 and run.failed[65, 0] == 1 and run.failed[66, 1] == 0 and not run.open_pairs
+    run.executed[65, 0], run.executed[67, 2] = 3, 1
+    rates = run.rates()
+    assert rates[65, 0] == (1 + 0.3) / 4 and rates[67, 2] == (1 + 0.3) / 2 and rates[1, 1] == 0.3
+    assert r14.thrash([10, 500])["thrash_legs"] == 1
+    # the bandit escape: motion 3 has the lowest rate of the offered ones, the blamed 0 is excluded
+    run.failed[65] = [0, 5, 5, 0, 5, 5, 5, 5]
+    run.executed[65] = [9, 5, 5, 9, 5, 5, 5, 5]
+    from ga.truth_table import truth_tables
+    pop = base.ga.ask()[:40]
+    fitness = np.linspace(0.0, 1.0, len(pop))
+    motions = truth_tables(pop, reflex=True)[:, 65]
+    i, _ = run.escape_download(pop, fitness, (65, 0))
+    offered = sorted(set(motions.tolist()) - {0})
+    best = min(offered, key=lambda m: run.rates()[65, m])
+    assert motions[i] == best and fitness[i] == fitness[motions == best].max()
+    out = tmp_path / "r14.jsonl"
+    for variant in ("default", "failrate", "bandit"):
+        assert r14.main([variant, "1", "--budget", "150", "--out", str(out)]) == 0
+    runs = [json.loads(line) for line in out.read_text().splitlines()]
+    assert runs[0]["thrash"]["baseline"] > 0 and runs[0]["executed"] == 150
+    capsys.readouterr()
+    assert r14.main(["--table", str(out)]) == 0
+    assert "| failrate | 1-1 (1) |" in capsys.readouterr().out
