@@ -27,7 +27,8 @@ lifetime). New here, host side:
 
 The round's instrument, ``thrash``: each leg's interactions against the hand-written controller's
 mean for that leg (``sim_world.baseline``, noise seeds 1-5): the excess over it, and how much of it
-lies in *thrash legs* (more than twice the baseline's leg plus 30 interactions).
+lies in *thrash legs* (more than twice the baseline's leg plus 30 interactions); and how many targets
+each download reached before the next learning phase (``downloads``).
 """
 
 from __future__ import annotations
@@ -163,7 +164,11 @@ class Round14(Round12):
     def extra_figures(self) -> dict:
         from experiments.online_round8 import legs
 
+        marks = [0] + [p["targets"] for p in self.phases] + [self.targets]  # the first: the random start
+        gains = [b - a for a, b in zip(marks, marks[1:])]  # targets each download reached before the next phase
         return {**super().extra_figures(), "bandit": dict(self.bandit_log),
+                "downloads": {"n": len(gains), "no_target": sum(g == 0 for g in gains),
+                              "most_targets": max(gains, default=0)},
                 "thrash": thrash(legs(self.target_log, self.interactions)),
                 "failed_marks": int(self.failed.sum()), "executed": int(self.executed.sum())}
 

@@ -454,6 +454,7 @@ def test_online_round14_failure_marks_the_rates_and_the_bandit_escape(tmp_path, 
         assert r14.main([variant, "1", "--budget", "150", "--out", str(out)]) == 0
     runs = [json.loads(line) for line in out.read_text().splitlines()]
     assert runs[0]["thrash"]["baseline"] > 0 and runs[0]["executed"] == 150
+    assert runs[0]["downloads"]["n"] == runs[0]["phases"] + 1 and runs[0]["downloads"]["most_targets"] >= 0
     capsys.readouterr()
     assert r14.main(["--table", str(out)]) == 0
     assert "| failrate | 1-1 (1) |" in capsys.readouterr().out
