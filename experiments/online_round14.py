@@ -174,8 +174,14 @@ class Round14(Round12):
 
 
 def table(path: Path) -> str:
-    """Each variant's lifetimes against this file's ``default`` rows on the same seeds."""
-    rows = rows_by_variant(path)
+    """The screening seeds (1-24), then the held-out seeds on their own."""
+    return "\n\n".join(seed_table(path, seeds) for seeds in (range(1, 25), HELD_OUT))
+
+
+def seed_table(path: Path, seeds) -> str:
+    """Each variant's lifetimes on ``seeds`` against this file's ``default`` rows on the same seeds."""
+    rows = {k: [r for r in rs if r["seed"] in seeds] for k, rs in rows_by_variant(path).items()}
+    rows = {k: rs for k, rs in rows.items() if rs}
     default = {r["seed"]: r for r in rows.get("default", [])}
     out = ["| variant | seeds | per seed (interactions to 64, or t @ budget) | median | default's median, same seeds "
            "| shorter | ratio (geometric mean) | failures | thrash legs | excess in thrash legs | CPU-s |",
