@@ -45,6 +45,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import cosim.online as online_mod  # noqa: E402
 from cosim.download import choose_download  # noqa: E402
+from experiments.online_round6 import cell  # noqa: E402
 from experiments.online_round7 import rows_by_variant  # noqa: E402
 from experiments.online_round8 import main as round8_main  # noqa: E402
 from experiments.online_round12 import DEFAULT_PARAMS as R12_PARAMS  # noqa: E402
@@ -144,9 +145,9 @@ class Round14(Round12):
         pick = min(offered, key=lambda m: (rates[m], -float(fitness[motions == m].max())))
         which = np.flatnonzero(motions == pick)
         i = int(which[np.argmax(fitness[which])])
-        first, _ = choose_download(population, fitness, blamed, reflex)
+        others = np.flatnonzero(motions != motion)  # the plain escape's choice: the fittest of these
         self.bandit_log["escapes"] += 1
-        self.bandit_log["changed_motion"] += int(motions[first] != pick)
+        self.bandit_log["changed_motion"] += int(motions[others[np.argmax(fitness[others])]] != pick)
         return i, i != int(np.argmax(fitness))
 
     def learn(self, reason, steps, state, motion, detector=""):
@@ -189,9 +190,6 @@ def seed_table(path: Path, seeds) -> str:
 
     def value(r):
         return r["interactions"] if r["targets"] >= 64 else r["budget"]
-
-    def cell(r):
-        return f"{r['interactions']:,}" if r["targets"] >= 64 else f"**{r['targets']} @ {r['budget'] // 1000}k**"
 
     for key, rs in rows.items():
         rs = sorted(rs, key=lambda r: r["seed"])
