@@ -46,6 +46,11 @@ class EvalCounts:
     loops: np.ndarray
     distance: np.ndarray
     cycles: int = 0  # clock cycles the hardware spent (0 for the reference backend)
+    fails: np.ndarray | None = None  # the failure-rate count F (ga.fail_rates); None: zeros
+
+    def __post_init__(self):
+        if self.fails is None:
+            object.__setattr__(self, "fails", np.zeros(np.shape(self.crashes), dtype=np.int64))
 
 
 class ControllerBoard(Protocol):
@@ -71,7 +76,11 @@ class EvaluatorBoard(Protocol):
         """Apply one observed transition (SPEC section 7 update rule) to the board's model."""
 
     def evaluate(self, population: np.ndarray) -> EvalCounts:
-        """(crashes, loops, distance) of every controller of ``population`` (P, 50)."""
+        """(crashes, loops, distance, fails) of every controller of ``population`` (P, 50)."""
+
+    def write_rates(self, changes) -> None:
+        """Write failure-rate codes (``ga.fail_rates``): (state, motion, code) triples. A fresh
+        or cleared board holds ``PRIOR_CODE`` for every pair."""
 
 
 # --------------------------------------------------------------------------------------------
@@ -121,6 +130,7 @@ class ReferenceEvaluatorBoard:
     """The evaluator board as ``ga.world_model.WorldModel`` plus ``ga.evaluator.evaluate_population``."""
 
     def __init__(self, reflex: bool = True, distance_rule: str = DEFAULT_DISTANCE_RULE):
+        from ga.fail_rates import prior_codes
         from ga.motions import motion_distances
         from ga.world_model import WorldModel
 
@@ -129,23 +139,25 @@ class ReferenceEvaluatorBoard:
         self.reflex = bool(reflex)
         self.distance_rule = distance_rule
         self.model = WorldModel()
+        self.rates = prior_codes()
         self.time_s = 0.0  # CPU time spent in evaluate (beside the EHW's hardware time)
 
     def observe(self, state: int, motion: int, next_state: int, crashed: bool) -> None:
         self.model.observe(int(state), int(motion), int(next_state), bool(crashed))
+
+    def write_rates(self, changes) -> None:
+        for state, motion, code in changes:
+            self.rates[state, motion] = code
 
     def evaluate(self, population: np.ndarray) -> EvalCounts:
         from ga.evaluator import evaluate_population
 
         t0 = time.process_time()  # CPU time: steady on a shared machine
         result = evaluate_population(population, self.model, reflex=self.reflex,
-                                     distance_rule=self.distance_rule)
+                                     distance_rule=self.distance_rule, rates=self.rates)
         self.time_s += time.process_time() - t0
-        return EvalCounts(
-            crashes=np.asarray(result.crashes),
-            loops=np.asarray(result.loops),
-            distance=np.asarray(result.distance),
-        )
+        return EvalCounts(crashes=np.asarray(result.crashes), loops=np.asarray(result.loops),
+                          distance=np.asarray(result.distance), fails=np.asarray(result.fails))
 
 
 class BackendUnavailable(UserError, RuntimeError):

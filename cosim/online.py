@@ -15,7 +15,9 @@ A lifetime alternates two phases, in sequence as in the paper:
 - **Learning phase** (:meth:`OnlineRun.learn`). ``generations_per_phase`` generations of the GA
   (population 500, tournament 20, elitism; the GA is kept across phases), each population
   evaluated on the evaluator board and scored with the normative fitness
-  (``ga.evaluator.fitness``); the controller chosen by ``cosim.download`` (the best, or after a
+  (``ga.evaluator.fitness``), with ``fail_rates`` less the robot's own failure rates of the
+  controller's motions (``ga.fail_rates``: the host marks the pairs before each failure and
+  writes the changed rate codes to the board before the phase); the controller chosen by ``cosim.download`` (the best, or after a
   time-out or loop the best that escapes the blamed motion: for a cycle stop a pair of the cycle,
   ``loop_blame``) is loaded with ``controller.load``.
 - At the very start the model is empty and a random individual of the initial population drives.
@@ -38,6 +40,8 @@ from pathlib import Path
 
 import numpy as np
 
+import dataclasses
+
 from cosim.boards import learning_top_drives, make_boards, make_learning_boards
 from cosim.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
 from cosim.download import choose_download
@@ -46,6 +50,7 @@ from cosim.online_config import OnlineConfig
 from ga.diversity import diversity
 from ga.evaluator import fitness as model_fitness
 from ga.evolution import GeneticAlgorithm
+from ga.fail_rates import FailureMarks
 from ga.genome import hex_from_rows, rows_from_hex
 from ga.motions import OBSTACLE_MASK
 from ga.truth_table import truth_tables
@@ -54,6 +59,7 @@ from sim_world.course import Course
 from sim_world.world import DEFAULT_NOISE, Fault, World
 
 CHECKPOINT_KIND = "online"
+FAILURES = ("crash", "timeout", "loop")  # the reasons a learning phase follows a failure
 
 
 def _seeds(seed: int) -> tuple[int, np.random.Generator]:
@@ -87,6 +93,7 @@ class OnlineRun:
         self.detectors = config.detectors()
         self.timeout = self.detectors[0]
         self.track = Track(maxlen=max(config.loop_window, 64))
+        self.marks = FailureMarks() if config.fail_rates else None  # rebuilt by replay on resume
         # lifetime counters (rebuilt by replay on resume)
         self.motions: list[int] = []  # every motion executed, in order (the replay log)
         self.state_log: list[int] = []  # the state observed after each motion
@@ -127,6 +134,8 @@ class OnlineRun:
         x, y, _ = self.world.pose
         self.state = step.state
         reached = step.reached and not step.crashed  # (a crash restores the pose: never both)
+        if self.marks is not None:
+            self.marks.executed_pair(s, motion, reached)
         if step.crashed:
             self.trajectory.append((x, y, "crash"))
         elif reached:
@@ -213,6 +222,8 @@ class OnlineRun:
             record["detector"] = detector
         if reason in ("timeout", "loop"):
             record["leg_start"] = self.leg_start
+        if reason in FAILURES:
+            self.mark_failure()
         if cfg.ga == "hardware":  # the whole phase on the learning board
             from cosim.learning_phase import learn_on_chip
 
@@ -222,6 +233,8 @@ class OnlineRun:
         for _ in range(cfg.generations_per_phase):
             pop = self.ga.ask()
             counts = self.evaluator.evaluate(pop)
+            if self.marks is None:  # SPEC section 7's three terms: whatever the board counted
+                counts = dataclasses.replace(counts, fails=None)
             self.ga.tell(model_fitness(counts, n_states))
             self.generations += 1
             self.genetic_operations += pop.shape[0]
@@ -237,12 +250,18 @@ class OnlineRun:
         record.update({
             "best_fitness": round(float(fitness[i_best]), 6),
             "best_crashes": int(counts.crashes[i_best]), "best_loops": int(counts.loops[i_best]),
-            "best_distance": int(counts.distance[i_best]),
+            "best_distance": int(counts.distance[i_best]), "best_fails": int(counts.fails[i_best]),
             "new_motion": new_motion, "changed": new_motion != int(motion),
             "population_avoids": float(np.mean(truth_tables(self.ga.ask(), reflex=cfg.reflex)[:, state] != motion)),
         })
         record.update(diversity(pop, self.mirror.states))
         self.phases.append(record)
+
+    def mark_failure(self) -> None:
+        """A failure ended the execution phase: mark its last pairs, write the changed rate codes."""
+        if self.marks is not None:
+            self.marks.failure()
+            self.evaluator.write_rates(self.marks.changes())
 
     # -- the lifetime --------------------------------------------------------------------------
 
@@ -307,8 +326,11 @@ class OnlineRun:
         # generators and scores) gets it back by replaying the learns where they happened.
         replay = {p["interactions"]: p for p in d["phases"]} if hardware and not hasattr(
             self.evaluator, "load_state") else {}
+        failures = {p["interactions"] for p in d["phases"] if p["reason"] in FAILURES}  # the failure marks, where they were made
         for motion in bytes.fromhex(d["motions"]):
             self.step(motion, record=False)
+            if self.interactions in failures:
+                self.mark_failure()
             phase = replay.get(self.interactions)
             if phase is not None:
                 from cosim.learning_phase import phase_avoid
@@ -368,6 +390,12 @@ def make_run(config: OnlineConfig, backend: str = "reference", out: Path | None 
         run.controller, run.evaluator = make_learning_boards(
             backend, hardware_ga_config(config), hardware_seed(config.seed), run.ga.ask(),
             controller=controller, reflex=config.reflex, distance_rule=config.distance_rule)
+    if config.fail_rates and not hasattr(run.evaluator, "write_rates"):
+        from cosim.boards import BackendUnavailable
+
+        raise BackendUnavailable(f"--fail-rates needs an evaluator board with a rate RAM; the {backend} "
+                                 f"backend's {'learning' if hardware else 'evaluator'} board has none "
+                                 f"yet (use --no-fail-rates)")
     if resume:
         if ckpt is None:
             raise CheckpointError("--resume needs an output directory holding checkpoint.json")

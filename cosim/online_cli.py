@@ -73,6 +73,9 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
                    help="end the lifetime after this many interactions even short of the targets (0: never)")
     p.add_argument("--escape", action=argparse.BooleanOptionalAction, default=d.escape,
                    help="after a time-out or loop, download the best that avoids the blamed motion")
+    p.add_argument("--fail-rates", action=argparse.BooleanOptionalAction, default=d.fail_rates,
+                   help="the robot's own failure rate of each (state, motion) as a fourth fitness "
+                        "term (ga.fail_rates; docs/online.md, round 15)")
     p.add_argument("--loop-blame", choices=LOOP_BLAMES, default=d.loop_blame,
                    help="the (state, motion) a cycle stop is blamed on: cycle = the first pair of "
                         "the cycle that stopped the leg (default), leg = the leg's most frequent "
@@ -98,7 +101,7 @@ def config_from_args(args) -> OnlineConfig:
         max_leg_steps=args.max_leg_steps, loop_window=args.loop_window,
         loop_reentries=args.loop_reentries, loop_repeats=args.loop_repeats,
         loop_radius_mm=args.loop_radius_mm, loop_cycles=args.loop_cycles, distance_rule=args.distance,
-        escape=args.escape, loop_blame=args.loop_blame, max_interactions=args.max_interactions,
+        escape=args.escape, fail_rates=args.fail_rates, loop_blame=args.loop_blame, max_interactions=args.max_interactions,
         blind_bit=args.blind_bit, blind_after_target=args.blind_after_target,
         ga=args.ga, lanes=args.lanes,
     )

@@ -62,6 +62,9 @@ class OnlineConfig:
     # the (state, motion) a cycle stop is blamed on (cosim.failures): "cycle", a pair of the cycle
     # that stopped the leg (round 8), or "leg", the leg's most frequent obstacle pair (rounds 1-7)
     loop_blame: str = "cycle"
+    # the robot's own failure rates per (state, motion) as a fourth fitness term (ga.fail_rates;
+    # docs/online.md, rounds 14-15); False: SPEC section 7's three terms alone
+    fail_rates: bool = False
     max_interactions: int = 100_000  # end the lifetime there even short of n_targets (0: no limit)
     # The GA of the learning phases: "host" (ga.evolution on the host, the evaluator board
     # evaluates) or "hardware" (the learning board: ga.hardware_ga / hdl.learner with `lanes`
@@ -94,7 +97,7 @@ class OnlineConfig:
         check(isinstance(value, (int, float)) and math.isfinite(value) and value >= 0, "loop_radius_mm",
               "a finite distance >= 0")
         check(self.distance_rule in DISTANCE_RULES, "distance_rule", f"one of {', '.join(DISTANCE_RULES)}")
-        for field in ("noise", "reflex", "escape"):
+        for field in ("noise", "reflex", "escape", "fail_rates"):
             check(isinstance(getattr(self, field), bool), field, "True or False")
         check(isinstance(self.arena, str) and bool(self.arena), "arena", "an arena name or .json path")
         check(self.ga in ("host", "hardware"), "ga", "host or hardware")

@@ -31,6 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ga.fail_rates import RATE_ONE, W_FAIL, fail_counts
 from ga.genome import validate_rows
 from ga.motions import (DEFAULT_DISTANCE_RULE, MAX_MOTION_DISTANCE_MM, N_MOTIONS, N_STATES, OBSTACLE_MASK,
                         motion_distances)
@@ -43,11 +44,17 @@ W_CRASHES, W_LOOPS, W_DISTANCE = 0.5, 0.4, 0.1
 
 @dataclass(frozen=True)
 class EvalResult:
-    """(crashes, loops, distance) of each controller: int64 arrays (P,)."""
+    """(crashes, loops, distance) of each controller, and ``fails``, the failure-rate count F of
+    ``ga.fail_rates`` (zeros when the evaluation had no rate codes): int64 arrays (P,)."""
 
     crashes: np.ndarray
     loops: np.ndarray
     distance: np.ndarray
+    fails: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.fails is None:
+            object.__setattr__(self, "fails", np.zeros(np.shape(self.crashes), dtype=np.int64))
 
     def __len__(self) -> int:
         return len(self.crashes)
@@ -59,7 +66,8 @@ class EvalResult:
 def fitness(result: EvalResult, n_states: int) -> np.ndarray:
     """Fitness of SPEC section 7 for every controller: (P,) float64.
 
-    fitness = 0.5 (1 - crashes/N) + 0.4 (1 - loops/N) + 0.1 distance / (N max(dist)).
+    fitness = 0.5 (1 - crashes/N) + 0.4 (1 - loops/N) + 0.1 distance / (N max(dist)),
+    less W_FAIL fails / (N RATE_ONE), the failure rates' term (``ga.fail_rates``; 0 without codes).
     With N = 0 (an empty model) every controller is equally unknown: the fitness is 0.
     """
     if isinstance(n_states, bool) or not isinstance(n_states, (int, np.integer)) or n_states < 0:
@@ -70,8 +78,9 @@ def fitness(result: EvalResult, n_states: int) -> np.ndarray:
     n = float(n_states)
     loops = np.asarray(result.loops, dtype=np.float64)
     distance = np.asarray(result.distance, dtype=np.float64)
+    fails = np.asarray(result.fails, dtype=np.float64)
     return (W_CRASHES * (1.0 - crashes / n) + W_LOOPS * (1.0 - loops / n)
-            + W_DISTANCE * distance / (n * MAX_MOTION_DISTANCE_MM))
+            + W_DISTANCE * distance / (n * MAX_MOTION_DISTANCE_MM) - W_FAIL * fails / (n * RATE_ONE))
 
 
 # -- the pseudo-code, one genome ------------------------------------------------------------------
@@ -130,9 +139,19 @@ def evaluate_python(rows, model: WorldModel, reflex: bool = True,
 # -- the vectorised population evaluator ----------------------------------------------------------
 
 
-def evaluate_tables(tables, model: WorldModel, distance_rule: str = DEFAULT_DISTANCE_RULE) -> EvalResult:
+def evaluate_tables(tables, model: WorldModel, distance_rule: str = DEFAULT_DISTANCE_RULE,
+                    rates=None) -> EvalResult:
     """(crashes, loops, distance) for truth tables (P, 256) (or (256,)): see the module docstring.
-    ``distance_rule``: dist[a], ``ga.motions.DISTANCE_RULES`` ("forward" is the SPEC)."""
+    ``distance_rule``: dist[a], ``ga.motions.DISTANCE_RULES`` ("forward" is the SPEC). ``rates``:
+    the failure-rate codes (256, 8) of ``ga.fail_rates``, for ``fails``; None: fails are 0."""
+    result = _trace_tables(tables, model, distance_rule)
+    if rates is None:
+        return result
+    return EvalResult(result.crashes, result.loops, result.distance,
+                      fail_counts(tables if np.ndim(tables) == 2 else np.asarray(tables)[None], model.states, rates))
+
+
+def _trace_tables(tables, model: WorldModel, distance_rule: str) -> EvalResult:
     dist = motion_distances(distance_rule)
     tables = np.asarray(tables)
     if tables.ndim == 1:
@@ -193,9 +212,10 @@ def evaluate_tables(tables, model: WorldModel, distance_rule: str = DEFAULT_DIST
 
 
 def evaluate_population(rows, model: WorldModel, reflex: bool = True,
-                        distance_rule: str = DEFAULT_DISTANCE_RULE) -> EvalResult:
+                        distance_rule: str = DEFAULT_DISTANCE_RULE, rates=None) -> EvalResult:
     """(crashes, loops, distance) of every genome of ``rows`` (P, 50) (or one genome (50,)) on
-    ``model``; int64 arrays (P,). Bit-exact with :func:`evaluate_python`."""
+    ``model``, and fails with ``rates`` (``evaluate_tables``); int64 arrays (P,). Bit-exact with
+    :func:`evaluate_python`."""
     rows = validate_rows(rows)
     tables = truth_tables(rows[None] if rows.ndim == 1 else rows, reflex)
-    return evaluate_tables(tables, model, distance_rule)
+    return evaluate_tables(tables, model, distance_rule, rates)

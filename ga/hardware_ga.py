@@ -171,11 +171,12 @@ class HardwareGAConfig:
 # -- the integer fitness ------------------------------------------------------------------------------
 
 
-def score(crashes, loops, distance, n_states: int) -> np.ndarray:
-    """10 D N x the SPEC fitness, as integers (int64): 5 D (N - c) + 4 D (N - l) + d."""
+def score(crashes, loops, distance, n_states: int, fails=0) -> np.ndarray:
+    """10 D N x the fitness, as integers (int64): 5 D (N - c) + 4 D (N - l) + d - F, F the
+    failure-rate count (``ga.fail_rates``: RATE_ONE = 10 W_FAIL D makes its term exactly F)."""
     d = MAX_MOTION_DISTANCE_MM
-    c, l, dist = (np.asarray(v, dtype=np.int64) for v in (crashes, loops, distance))
-    return 5 * d * (n_states - c) + 4 * d * (n_states - l) + dist
+    c, l, dist, f = (np.asarray(v, dtype=np.int64) for v in (crashes, loops, distance, fails))
+    return 5 * d * (n_states - c) + 4 * d * (n_states - l) + dist - f
 
 
 def first_best(scores) -> int:

@@ -1,13 +1,18 @@
 """The evaluator board (SPEC section 8): world-model RAM, state set, AND-OR array, trace engine.
 
 It computes (crashes, loops, distance) of the model-based fitness of SPEC section 7 for one
-controller, bit-exact with ``ga.evaluator``, at one trace step (one tested state) per clock.
+controller, bit-exact with ``ga.evaluator``, at one trace step (one tested state) per clock, and
+``fails``, the failure-rate count F of ``ga.fail_rates`` (the summed rate codes of the
+controller's motions in the obstacle states of S), in the same step.
 
 Datapath
 --------
 - ``ram``: 2^(8+3) = 2048 entries of 9 bits (``hdl.ports.ModelEntry``, one 2048 x 9 block RAM),
   address ``state * 8 + motion`` (``Cat(motion, state)``). One synchronous write port (the host,
   or the Clear sweep) and one synchronous read port (the trace engine).
+- ``rate_ram``: 2048 failure-rate codes of 8 bits (``ga.fail_rates``), same address, written by
+  the host's rate port (``hdl.ports.RateWriteSignature``) or the Clear sweep (``PRIOR_CODE``) and
+  read beside ``ram``: the code of the pair whose entry is on ``rd.data`` arrives with it.
 - ``in_set``: the state set S as a 256-bit register (the host adds states; ``n_states`` counts).
 - ``tested``, ``trace``: 256-bit registers, the sets of the pseudo-code. ``tested`` is cleared at
   start, ``trace`` is reloaded with a one-hot at each new trace.
@@ -35,13 +40,14 @@ FSM
 reset does not touch its contents), so a reset board sweeps it and is ready 2049 cycles after
 reset with an empty model (S empty, every entry unknown). Wait for ``ready`` after reset.
 
-- ``Idle``: ``ready`` = 1. Accepts world-model writes, state additions, ``clear`` and ``start``
+- ``Idle``: ``ready`` = 1. Accepts world-model writes, rate writes, state additions, ``clear`` and ``start``
   (priority: clear, then start; a write in the same cycle as start is applied before the
   evaluation: the RAM write lands at that edge, the first read is one cycle later).
 - ``Begin``: issues the first state (smallest of S); with S empty goes straight back to ``Idle``.
 - ``Trace``: counts the entry on ``rd.data`` and issues the next state; when every state of S is
   tested, latches the results, pulses ``done`` and returns to ``Idle``.
-- ``Clear``: writes 0 (unknown) to every RAM entry; S was emptied on entering.
+- ``Clear``: writes 0 (unknown) to every RAM entry and ``PRIOR_CODE`` to every rate code; S was
+  emptied on entering.
 
 Cycle cost
 ----------
@@ -54,9 +60,9 @@ about P * max(N + 2, 51) cycles. Either way <= 2N + 60 per controller.
 Handshake
 ---------
 ``start`` is honoured only when ``ready`` (state ``Idle``); a start while busy is ignored, and so
-are world-model writes, state additions and ``clear`` while busy (``ready`` low). Row writes are
+are world-model writes, rate writes, state additions and ``clear`` while busy (``ready`` low). Row writes are
 always accepted (they only touch the shadow). Results (``crashes``, ``loops``, ``distance``,
-``cycles``) are result registers: they change only at the edge that ends an evaluation (the
+``fails``, ``cycles``) are result registers: they change only at the edge that ends an evaluation (the
 same edge that raises ``done`` for one cycle and lowers ``busy``) and hold until the next one
 ends, so the host may read them during the next evaluation. ``reflex_en`` is sampled at start.
 """
@@ -69,11 +75,12 @@ from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 from amaranth.utils import exact_log2
 
+from ga.fail_rates import FAIL_BITS, PRIOR_CODE, RATE_BITS
 from ga.genome import N_ROWS, ROW_BITS
 from ga.motions import (DEFAULT_DISTANCE_RULE, MAX_MOTION_DISTANCE_MM, N_INPUTS, N_MOTIONS, N_OUTPUTS,
                         N_STATES, OBSTACLE_MASK, REFLEX_MOTION, SECTOR_SHIFT, motion_distances)
 from hdl.and_or_array import AndOrArray, _check_positive
-from hdl.ports import COUNT_BITS, DISTANCE_BITS, ModelEntry, ModelWriteSignature, RowWriteSignature
+from hdl.ports import COUNT_BITS, DISTANCE_BITS, ModelEntry, ModelWriteSignature, RateWriteSignature, RowWriteSignature
 
 RAM_DEPTH = N_STATES * N_MOTIONS  # 2^(n+3)
 CYCLE_BITS = 16
@@ -151,6 +158,10 @@ class EvaluatorEHW(wiring.Component):
         host applies the update rule (``ga.world_model``) and writes the resulting entry.
         Verilog: ``model__state``, ``model__motion``, ``model__next``, ``model__crash``,
         ``model__valid``, ``model__we``.
+    rate : In(RateWriteSignature())
+        Failure-rate write port (``hdl.ports``): code (``rate.state``, ``rate.motion``) :=
+        ``rate.code`` at the next edge when ``rate.we`` and ``ready``. Verilog: ``rate__state``,
+        ``rate__motion``, ``rate__code``, ``rate__we``.
     state_value : In(8), state_we : In(1)
         Add ``state_value`` to S at the next edge, when ``ready`` (adding a member is harmless).
     clear : In(1)
@@ -165,7 +176,7 @@ class EvaluatorEHW(wiring.Component):
         Evaluating or clearing (= not ready).
     done : Out(1)
         One-cycle pulse: the result registers have just been updated.
-    crashes, loops : Out(9); distance : Out(16); cycles : Out(16)
+    crashes, loops : Out(9); distance : Out(16); fails : Out(16); cycles : Out(16)
         Results of the last finished evaluation (``cycles`` = N + 1).
     n_states : Out(9)
         |S|.
@@ -186,6 +197,7 @@ class EvaluatorEHW(wiring.Component):
         super().__init__({
             "row": In(RowWriteSignature(self.k)),
             "model": In(ModelWriteSignature()),
+            "rate": In(RateWriteSignature()),
             "state_value": In(N_INPUTS),
             "state_we": In(1),
             "clear": In(1),
@@ -197,6 +209,7 @@ class EvaluatorEHW(wiring.Component):
             "crashes": Out(COUNT_BITS),
             "loops": Out(COUNT_BITS),
             "distance": Out(DISTANCE_BITS),
+            "fails": Out(FAIL_BITS),
             "cycles": Out(CYCLE_BITS),
             "n_states": Out(COUNT_BITS),
         })
@@ -208,6 +221,9 @@ class EvaluatorEHW(wiring.Component):
         ram = m.submodules.ram = Memory(shape=ModelEntry, depth=RAM_DEPTH, init=[])
         wr = ram.write_port()
         rd = ram.read_port()  # synchronous: rd.data is the entry at last cycle's rd.addr
+        rate_ram = m.submodules.rate_ram = Memory(shape=RATE_BITS, depth=RAM_DEPTH, init=[])
+        rate_wr = rate_ram.write_port()
+        rate_rd = rate_ram.read_port()  # the code of rd.data's pair, in the same cycle
 
         # -- configuration: shadow filled by the row port, copied to arch at start ----------------
         if self.double_buffer:
@@ -278,13 +294,15 @@ class EvaluatorEHW(wiring.Component):
             m.d.comb += motion.eq(Mux(follow, motion_of(s2, ahead), motion_of(pick_state, array)))
         else:
             m.d.comb += motion.eq(motion_of(x, array))
-        m.d.comb += rd.addr.eq(Cat(motion, x))
+        m.d.comb += [rd.addr.eq(Cat(motion, x)), rate_rd.addr.eq(rd.addr)]
+        step_fails = Mux(tracing & ((cur & OBSTACLE_MASK) != 0), rate_rd.data, 0)  # obstacle states only
         step_distance = Array(Const(int(d), DISTANCE_BITS) for d in self.distances)[cur_motion]
 
         # -- accumulators (results are latched at the end) -------------------------------------------
         acc_crashes = Signal(COUNT_BITS)
         acc_loops = Signal(COUNT_BITS)
         acc_distance = Signal(DISTANCE_BITS)
+        acc_fails = Signal(FAIL_BITS)
         acc_cycles = Signal(CYCLE_BITS)
         clear_addr = Signal(range(RAM_DEPTH))
 
@@ -294,6 +312,9 @@ class EvaluatorEHW(wiring.Component):
             wr.addr.eq(Cat(self.model.motion, self.model.state)),
             *wr.data.store(self.model.next, self.model.crash, self.model.valid),
             wr.en.eq(host_write),
+            rate_wr.addr.eq(Cat(self.rate.motion, self.rate.state)),
+            rate_wr.data.eq(self.rate.code),
+            rate_wr.en.eq(self.rate.we & self.ready),
         ]
 
         onehot = _one_hot(m, x, N_STATES, "x_hot")
@@ -312,6 +333,7 @@ class EvaluatorEHW(wiring.Component):
                 self.crashes.eq(acc_crashes + crashed),
                 self.loops.eq(acc_loops + loop_hit),
                 self.distance.eq(acc_distance + Mux(moves, step_distance, 0)),
+                self.fails.eq(acc_fails + step_fails),
                 self.cycles.eq(acc_cycles + 1),
                 self.done.eq(1),
             ]
@@ -340,6 +362,7 @@ class EvaluatorEHW(wiring.Component):
                         acc_crashes.eq(0),
                         acc_loops.eq(0),
                         acc_distance.eq(0),
+                        acc_fails.eq(0),
                         acc_cycles.eq(0),
                     ]
                     m.next = "Begin"
@@ -361,6 +384,7 @@ class EvaluatorEHW(wiring.Component):
                     acc_crashes.eq(acc_crashes + crashed),
                     acc_loops.eq(acc_loops + loop_hit),
                     acc_distance.eq(acc_distance + Mux(moves, step_distance, 0)),
+                    acc_fails.eq(acc_fails + step_fails),
                     acc_cycles.eq(acc_cycles + 1),
                 ]
                 with m.If(issue):
@@ -375,6 +399,9 @@ class EvaluatorEHW(wiring.Component):
                     wr.addr.eq(clear_addr),
                     wr.data.eq(0),  # every bit 0: ModelEntry.UNKNOWN, not moving
                     wr.en.eq(1),
+                    rate_wr.addr.eq(clear_addr),
+                    rate_wr.data.eq(PRIOR_CODE),  # a pair never executed
+                    rate_wr.en.eq(1),
                 ]
                 m.d.sync += clear_addr.eq(clear_addr + 1)
                 with m.If(clear_addr == RAM_DEPTH - 1):

@@ -72,6 +72,18 @@ class EvaluatorSimHost:
         await self.tick()
         pins.set("state_we", 0)
 
+    async def write_rates(self, changes):
+        """Failure-rate codes (``ga.fail_rates``): one (state, motion, code) per cycle, when ready."""
+        pins = self.pins
+        for state, motion, code in changes:
+            assert pins.get("ready")
+            pins.set("rate__state", int(state))
+            pins.set("rate__motion", int(motion))
+            pins.set("rate__code", int(code))
+            pins.set("rate__we", 1)
+            await self.tick()
+        pins.set("rate__we", 0)
+
     async def add_state(self, state):
         self.pins.set("state_value", int(state))
         self.pins.set("state_we", 1)
@@ -81,6 +93,10 @@ class EvaluatorSimHost:
     def results(self):
         get = self.pins.get
         return (get("crashes"), get("loops"), get("distance")), get("cycles")
+
+    def fails(self) -> int:
+        """The failure-rate count F of the last evaluation."""
+        return self.pins.get("fails")
 
     async def evaluate(self, rows, reflex=True):
         """Load 50 rows (start with the last), wait for done. Returns (counts, cycles register,

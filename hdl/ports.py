@@ -11,6 +11,8 @@ used on both sides):
   Verilog a port ``row`` of it is ``row__addr``, ``row__data``, ``row__we``.
 - ``ModelWriteSignature()``: the evaluator's world-model write port (entry (``state``,
   ``motion``) := {``next``, ``crash``, ``valid``} when ``we``).
+- ``RateWriteSignature()``: the evaluator's failure-rate write port (code of (``state``,
+  ``motion``) := ``code`` when ``we``; ``ga.fail_rates``).
 - ``ModelEntry``: one world-model RAM word (9 bits: the port's {next, crash, valid} coded so that
   the 2048 entries fit one 2048 x 9 block RAM); ``RESULT_LAYOUT``: the evaluator's result word
   (crashes, loops, distance), packed by the system top's results RAM and unpacked by the host
@@ -30,6 +32,7 @@ from amaranth.hdl import Mux
 from amaranth.lib import data, wiring
 from amaranth.lib.wiring import Out
 
+from ga.fail_rates import RATE_BITS
 from ga.genome import N_ROWS, ROW_BITS
 from ga.motions import N_INPUTS, N_OUTPUTS, N_STATES
 
@@ -125,6 +128,28 @@ class ModelWriteSignature(wiring.Signature):
 
     def __repr__(self):
         return "ModelWriteSignature()"
+
+
+class RateWriteSignature(wiring.Signature):
+    """Failure-rate write port, from the writer's (host's) side: the rate code of (``state``,
+    ``motion``) := ``code`` (``ga.fail_rates``) at the next edge when ``we``."""
+
+    def __init__(self):
+        super().__init__({
+            "state": Out(N_INPUTS),
+            "motion": Out(N_OUTPUTS),
+            "code": Out(RATE_BITS),
+            "we": Out(1),
+        })
+
+    def __eq__(self, other):
+        return isinstance(other, RateWriteSignature)
+
+    def __hash__(self):
+        return hash(RateWriteSignature)
+
+    def __repr__(self):
+        return "RateWriteSignature()"
 
 
 def unpack_result(word: int) -> tuple[int, int, int]:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from ga.evaluator import evaluate_population, evaluate_python
+from ga.fail_rates import RATE_ONE, prior_codes
 from ga.genome import N_ROWS
 from ga.motions import REFLEX_STATES, make_state
 from ga.world_model import WorldModel
@@ -49,6 +50,22 @@ def random_model(rng, n_pool: int, n_obs: int, p_crash: float, motions=range(8),
             s2 = s
         model.observe(s, int(rng.choice(motions)), s2, bool(rng.random() < p_crash))
     return model
+
+
+def case_rates(model: WorldModel, seed: int = CASE_SEED) -> list[tuple[int, int, int]]:
+    """Failure-rate codes (``ga.fail_rates``) for the pairs of half the states of S, the others
+    left at the prior: (state, motion, code) writes, codes 0..RATE_ONE."""
+    rng = np.random.default_rng([seed, model.n_states])
+    states = [int(s) for s in model.states if rng.random() < 0.5]
+    return [(s, a, int(rng.integers(0, RATE_ONE + 1))) for s in states for a in range(8)]
+
+
+def rate_table(changes) -> np.ndarray:
+    """The (256, 8) codes a cleared board holds after ``changes``."""
+    table = prior_codes()
+    for s, a, code in changes:
+        table[s, a] = code
+    return table
 
 
 def cases(seed: int = CASE_SEED):

@@ -17,12 +17,14 @@ from amaranth.hdl import Shape
 from amaranth.sim import Simulator
 
 from ga.evaluator import evaluate_population
+from ga.fail_rates import PRIOR_CODE
+from ga.motions import OBSTACLE_MASK
 from ga.world_model import WorldModel
 from hdl.evaluator_ehw import RAM_DEPTH, EvaluatorEHW
 from hdl.evaluator_sim import EvaluatorSimHost as SimHost
 from ga.genome import N_ROWS
-from hdl.ports import ModelEntry, ModelWriteSignature, RowWriteSignature, write_rows
-from test_evaluator_cases import cases, constant_rows, random_model, specific_rows
+from hdl.ports import ModelEntry, ModelWriteSignature, RateWriteSignature, RowWriteSignature, write_rows
+from test_evaluator_cases import case_rates, cases, constant_rows, random_model, rate_table, specific_rows
 
 TB_DIR = Path(__file__).resolve().parent / "cocotb_tb"
 
@@ -61,12 +63,15 @@ def test_amaranth_sim_matches_reference_on_shared_cases():
             host.ctx.set(host.dut.clear, 0)
             await host.wait_ready()
             await host.write_model(model)
+            await host.write_rates(case_rates(model))
             assert host.ctx.get(host.dut.n_states) == model.n_states, name
             want = reference_counts(pop, model, reflex)
+            want_fails = evaluate_population(pop, model, reflex, rates=rate_table(case_rates(model))).fails
             n = model.n_states
             for i, rows in enumerate(pop):
                 counts, cycles, cost = await host.evaluate(rows, reflex)
                 assert counts == want[i], f"{name}, genome {i}: HDL {counts}, reference {want[i]}"
+                assert host.fails() == want_fails[i], f"{name}, genome {i}: fails"
                 assert cycles == n + 1, f"{name}: {cycles} cycles for N = {n}"
                 assert cost <= 2 * n + 60, f"{name}: {cost} cycles per controller, N = {n}"
                 seen.append((name, n, cost))
@@ -222,7 +227,9 @@ def test_clear_sweeps_the_model():
     async def body(host):
         ctx, dut = host.ctx, host.dut
         await host.write_model(model)
+        await host.write_rates((s, 3, 0) for s in model.states)
         assert (await host.evaluate(rows, reflex=False))[0] != (0, 0, 0)
+        assert host.fails() == 0
         ctx.set(dut.clear, 1)
         await host.tick()
         ctx.set(dut.clear, 0)
@@ -234,6 +241,7 @@ def test_clear_sweeps_the_model():
         for s in model.states:  # S again, but no transition: every one is unknown
             await host.add_state(s)
         assert (await host.evaluate(rows, reflex=False))[0] == (0, 0, 0)
+        assert host.fails() == PRIOR_CODE * int(((model.states & OBSTACLE_MASK) != 0).sum()) > 0
 
     run_sim(body)
 
@@ -275,7 +283,8 @@ def test_every_port_entry_survives_the_nine_bit_word():
 def test_world_model_ram_is_one_ecp5_block_ram(tmp_path):
     """Yosys's ECP5 memory mapping puts the learner lane's evaluator's world-model RAM into one
     DP16KD (2048 x 9: the trace loop closes on one block; the 10 bits of {next, crash, valid}
-    took two, docs/learner.md "Resources and clock"). Through map_ram only: seconds, not minutes."""
+    took two, docs/learner.md "Resources and clock"), and the failure-rate codes into a second
+    (2048 x 8, read beside it). Through map_ram only: seconds, not minutes."""
     from amaranth.back import rtlil
 
     from formal.yosys import INSTALL_HINT, available, run_script
@@ -285,7 +294,8 @@ def test_world_model_ram_is_one_ecp5_block_ram(tmp_path):
     dut = EvaluatorEHW(double_buffer=True, lookahead=True)  # as hdl.learner_lane.Lane has it
     (tmp_path / "top.il").write_text(rtlil.convert(dut, name="top", emit_src=False))
     run = run_script("read_rtlil top.il\nsynth_ecp5 -top top -run :map_ffram\n"
-                     "select -assert-count 1 t:DP16KD\nselect -assert-count 1 t:DP16KD r:DATA_WIDTH_B=9\n",
+                     "select -assert-count 2 t:DP16KD\nselect -assert-count 2 t:DP16KD r:DATA_WIDTH_B=9\n"
+                     "select -assert-count 1 t:DP16KD n:rate_ram.* %i\n",
                      tmp_path)
     assert run.returncode == 0, run.tail()
 
@@ -300,7 +310,8 @@ def test_constructor_and_ports():
     assert members["row"].signature == RowWriteSignature(N_ROWS).flip()
     assert members["model"].signature == ModelWriteSignature().flip()
     assert [len(dut.row.addr), len(dut.row.data), len(dut.model.state), len(dut.model.next)] == [6, 19, 8, 8]
-    assert (width["crashes"], width["loops"], width["distance"], width["cycles"]) == (9, 9, 16, 16)
+    assert members["rate"].signature == RateWriteSignature().flip()
+    assert (width["crashes"], width["loops"], width["distance"], width["fails"], width["cycles"]) == (9, 9, 16, 16, 16)
 
 
 def test_verilog_ports(tmp_path):
@@ -311,7 +322,7 @@ def test_verilog_ports(tmp_path):
     header = header[:header.index(";")]
     ports = set(re.findall(r"\w+", header)) - {"module", "evaluator_ehw"}
     for name in ("clk", "rst", "row__addr", "row__data", "row__we", "model__we", "start", "busy", "done",
-                 "crashes", "loops", "distance", "cycles"):
+                 "crashes", "loops", "distance", "fails", "cycles", "rate__code", "rate__we"):
         assert name in ports
 
 

@@ -59,7 +59,8 @@ def test_other_seed_gives_another_lifetime():
 
 
 @pytest.mark.parametrize("options", [{}, {"loop_window": 15, "loop_reentries": 0, "loop_repeats": 6},
-                                     {"loop_window": 15, "distance_rule": "covered", "loop_cycles": 0}])
+                                     {"loop_window": 15, "distance_rule": "covered", "loop_cycles": 0},
+                                     {"fail_rates": True}])
 def test_resume_equals_uninterrupted(tmp_path, options):
     config = OnlineConfig(seed=5, **{**SMALL, **options})
     whole = make_run(config, out=tmp_path / "whole").run()
@@ -68,6 +69,7 @@ def test_resume_equals_uninterrupted(tmp_path, options):
     assert len(part.phases) == 2 and part.targets < config.n_targets
     resumed = make_run(config, out=tmp_path / "part", resume=True)
     assert resumed.interactions == part.interactions and resumed.evaluator.model == part.evaluator.model
+    assert (resumed.evaluator.rates == part.evaluator.rates).all()
     resumed.run()
     assert _figures(resumed) == _figures(whole)
     assert resumed.motions == whole.motions

@@ -26,12 +26,13 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # tests/, for t
 from ga.evaluator import evaluate_population  # noqa: E402
 from ga.world_model import WorldModel  # noqa: E402
 from hdl.ports import CocotbPins, write_rows  # noqa: E402
-from test_evaluator_cases import cases, constant_rows, random_model, specific_rows  # noqa: E402
+from test_evaluator_cases import case_rates, cases, constant_rows, random_model, rate_table, specific_rows  # noqa: E402
 
 import numpy as np  # noqa: E402
 
 INPUTS = ("row__addr", "row__data", "row__we", "model__state", "model__motion", "model__next",
-          "model__crash", "model__valid", "model__we", "state_value", "state_we", "clear", "reflex_en", "start")
+          "model__crash", "model__valid", "model__we", "rate__state", "rate__motion", "rate__code", "rate__we",
+          "state_value", "state_we", "clear", "reflex_en", "start")
 
 
 def reference_counts(pop, model, reflex):
@@ -98,6 +99,15 @@ class Testbench:
             self.pins.set("model__we", 0)
             self.pins.set("state_we", 0)
 
+    async def write_rates(self, changes):
+        """Failure-rate codes (ga.fail_rates), one (state, motion, code) per cycle."""
+        for state, motion, code in changes:
+            assert self.get("ready")
+            for name, value in (("state", state), ("motion", motion), ("code", code), ("we", 1)):
+                self.pins.set(f"rate__{name}", int(value))
+            await self.tick()
+        self.pins.set("rate__we", 0)
+
     def results(self):
         return (self.get("crashes"), self.get("loops"), self.get("distance")), self.get("cycles")
 
@@ -122,11 +132,14 @@ async def shared_cases_match_reference(dut):
     for name, model, pop, reflex in cases():
         await tb.clear()
         await tb.write_model(model)
+        await tb.write_rates(case_rates(model))
         assert tb.get("n_states") == model.n_states, name
         n = model.n_states
+        fails = evaluate_population(pop, model, reflex, rates=rate_table(case_rates(model))).fails
         for i, (rows, want) in enumerate(zip(pop, reference_counts(pop, model, reflex))):
             counts, cycles, cost = await tb.evaluate(rows, reflex)
             assert counts == want, f"{name}, genome {i}: Verilog {counts}, reference {want}"
+            assert tb.get("fails") == fails[i], f"{name}, genome {i}: fails"
             assert cycles == n + 1, f"{name}: {cycles} cycles for N = {n}"
             assert cost <= 2 * n + 60, f"{name}: {cost} cycles per controller for N = {n}"
             checked += 1

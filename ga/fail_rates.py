@@ -1,0 +1,104 @@
+"""The robot's own failure rates, a fourth term of the on-line fitness (docs/online.md, round 14).
+
+The world model keeps one latest outcome per (state, motion); in obstacle states that outcome is
+wrong about 70 % of the time in the noisy world (round 7), so a controller the model calls safe
+may fail again and again. The failure rates say what each pair cost the robot, whatever the noise
+did:
+
+- **Marks** (host side, :class:`FailureMarks`). Each executed (state, motion) counts as *executed*;
+  when a failure (crash, loop stop, time-out) ends an execution phase, the pairs among its last
+  ``HORIZON`` steps are marked *failed* (each pair once per failure). A leg that reaches its target
+  clears its pending pairs: they were fine.
+- **Rate codes** (the contract with the evaluator boards, :func:`rate_codes`). The failure rate of a
+  pair is (failed + prior) / (executed + 1) with prior = 0.1 for a pair never executed, written as
+  an 8-bit code in units of 1 / ``RATE_ONE``: code = round((RATE_ONE failed + PRIOR_CODE) /
+  (executed + 1)), 0..250. The host writes the codes that changed to the board before a learning
+  phase (``write_rates`` of ``cosim.boards.EvaluatorBoard``); a board cleared holds ``PRIOR_CODE``
+  everywhere.
+- **Fail count** (the evaluator, :func:`fail_counts`). F = the sum of the codes of the controller's
+  motions in the obstacle states of S, each state once: the shape of the distance term, summed
+  in the same trace step. The fitness loses ``W_FAIL`` F / (N ``RATE_ONE``) (``ga.evaluator.fitness``):
+  a pair that always fails weighs one crash.
+
+``RATE_ONE`` = 10 ``W_FAIL`` D (D = 50 mm, the largest dist[a]) makes the learning engine's integer
+score (``ga.hardware_ga.score``, 10 D N times the fitness) lose exactly F: no multiplier on the chip.
+Measured (docs/online.md, round 14): median interactions to 64 targets 6,620 against 8,294.5 on
+held-out seeds 181-200 (float rates; the codes: round 15).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ga.motions import MAX_MOTION_DISTANCE_MM, N_MOTIONS, N_STATES, OBSTACLE_MASK
+
+W_FAIL = 0.5  # the weight of a sure failure: a crash's (ga.evaluator.W_CRASHES)
+RATE_ONE = 250  # the code of rate 1
+assert RATE_ONE == round(10 * W_FAIL * MAX_MOTION_DISTANCE_MM)  # the integer score loses F exactly
+PRIOR_CODE = 25  # rate 0.1 for a pair never executed (round 14: prior 0.1 chosen on seeds 1-16)
+HORIZON = 8  # the steps before a failure whose pairs it marks
+RATE_BITS = 8  # one code
+FAIL_BITS = 16  # F <= 256 * RATE_ONE
+assert RATE_ONE < 1 << RATE_BITS and N_STATES * RATE_ONE < 1 << FAIL_BITS
+
+
+def rate_codes(failed: np.ndarray, executed: np.ndarray) -> np.ndarray:
+    """(256, 8) uint8: round((RATE_ONE failed + PRIOR_CODE) / (executed + 1)), halves up, in integers."""
+    failed, executed = np.asarray(failed, dtype=np.int64), np.asarray(executed, dtype=np.int64)
+    if failed.shape != (N_STATES, N_MOTIONS) or executed.shape != failed.shape:
+        raise ValueError(f"failure marks are ({N_STATES}, {N_MOTIONS}) arrays, got {failed.shape!r} "
+                         f"and {executed.shape!r}")
+    if (failed < 0).any() or (failed > executed).any():
+        raise ValueError("failed marks must be in 0..executed for every pair")
+    den = executed + 1
+    return ((2 * (RATE_ONE * failed + PRIOR_CODE) + den) // (2 * den)).astype(np.uint8)
+
+
+def prior_codes() -> np.ndarray:
+    """The codes of a cleared board: PRIOR_CODE for every pair."""
+    return np.full((N_STATES, N_MOTIONS), PRIOR_CODE, dtype=np.uint8)
+
+
+def fail_counts(tables: np.ndarray, states: np.ndarray, codes: np.ndarray) -> np.ndarray:
+    """F of each truth table (P, 256): the summed codes of its motions in the obstacle states of
+    ``states`` (S). int64 (P,)."""
+    tables = np.asarray(tables)
+    states = np.asarray(states, dtype=np.int64)
+    obstacle = states[(states & OBSTACLE_MASK) != 0]
+    codes = np.asarray(codes, dtype=np.int64)
+    return codes[obstacle[None, :], tables[:, obstacle]].sum(axis=1, dtype=np.int64)
+
+
+class FailureMarks:
+    """The host's marks of one lifetime: executed and failed counts per (state, motion)."""
+
+    def __init__(self, horizon: int = HORIZON):
+        self.horizon = int(horizon)
+        self.executed = np.zeros((N_STATES, N_MOTIONS), dtype=np.int64)
+        self.failed = np.zeros((N_STATES, N_MOTIONS), dtype=np.int64)
+        self.pending: list[tuple[int, int]] = []  # this leg's pairs, not yet judged
+        self.written = prior_codes()  # what the evaluator board holds
+
+    def executed_pair(self, state: int, motion: int, reached: bool) -> None:
+        """One executed motion; ``reached``: it reached the target (the leg's pairs were fine)."""
+        self.executed[state, motion] += 1
+        self.pending.append((int(state), int(motion)))
+        if reached:
+            self.pending.clear()
+
+    def failure(self) -> None:
+        """A failure ended the execution phase: its last ``horizon`` pairs failed, once each."""
+        for s, a in set(self.pending[-self.horizon:]):
+            self.failed[s, a] += 1
+        self.pending.clear()
+
+    def codes(self) -> np.ndarray:
+        return rate_codes(self.failed, self.executed)
+
+    def changes(self) -> list[tuple[int, int, int]]:
+        """The (state, motion, code) the board does not hold yet, in address order; they count as
+        written from now on."""
+        codes = self.codes()
+        states, motions = np.nonzero(codes != self.written)
+        self.written = codes
+        return [(int(s), int(a), int(codes[s, a])) for s, a in zip(states, motions)]

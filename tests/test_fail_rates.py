@@ -1,0 +1,124 @@
+"""The failure rates (ga.fail_rates): codes, the fail count F, the host's marks, the fitness term."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cosim.online import OnlineConfig, make_run
+from ga.evaluator import EvalResult, evaluate_population, fitness
+from ga.fail_rates import (HORIZON, PRIOR_CODE, RATE_ONE, W_FAIL, FailureMarks, fail_counts, prior_codes,
+                           rate_codes)
+from ga.hardware_ga import score
+from ga.motions import MAX_MOTION_DISTANCE_MM, N_MOTIONS, N_STATES, OBSTACLE_MASK
+from ga.operators import random_population
+from ga.truth_table import truth_tables
+from ga.world_model import WorldModel
+
+
+def _marks(pairs):
+    failed = np.zeros((N_STATES, N_MOTIONS), dtype=np.int64)
+    executed = np.zeros_like(failed)
+    for (s, a), (f, e) in pairs.items():
+        failed[s, a], executed[s, a] = f, e
+    return failed, executed
+
+
+def test_codes_round_half_up_in_integers():
+    failed, executed = _marks({(1, 0): (0, 1), (1, 1): (1, 1), (1, 2): (0, 9), (1, 3): (40, 40),
+                               (1, 4): (3, 7)})
+    codes = rate_codes(failed, executed)
+    assert codes.dtype == np.uint8
+    assert codes[0, 0] == PRIOR_CODE == 25  # never executed: the prior 0.1
+    assert codes[1, 0] == 13  # 25 / 2 = 12.5 -> 13
+    assert codes[1, 1] == 138  # 275 / 2 = 137.5 -> 138
+    assert codes[1, 2] == 3  # 25 / 10 = 2.5 -> 3
+    assert codes[1, 3] == 245  # 10025 / 41 = 244.51 -> 245
+    assert codes[1, 4] == 97  # 775 / 8 = 96.875 -> 97
+    always = rate_codes(*_marks({(2, 0): (10**6, 10**6)}))
+    assert always.max() <= RATE_ONE and always[2, 0] == RATE_ONE
+
+
+@pytest.mark.parametrize("failed, executed", [(1, 0), (-1, 2)])
+def test_codes_refuse_impossible_marks(failed, executed):
+    with pytest.raises(ValueError, match="failed marks"):
+        rate_codes(*_marks({(3, 3): (failed, executed)}))
+
+
+def test_fail_count_is_the_plain_sum_over_obstacle_states_of_s():
+    rng = np.random.default_rng(7)
+    tables = truth_tables(random_population(rng, 20), reflex=True)
+    states = np.sort(rng.choice(N_STATES, 60, replace=False))
+    codes = rng.integers(0, RATE_ONE + 1, size=(N_STATES, N_MOTIONS)).astype(np.uint8)
+    want = [sum(int(codes[s, t[s]]) for s in states if s & OBSTACLE_MASK) for t in tables]
+    assert fail_counts(tables, states, codes).tolist() == want
+    assert any(s & OBSTACLE_MASK == 0 for s in states) and min(want) > 0
+
+
+def test_the_evaluator_counts_fails_only_with_codes():
+    rng = np.random.default_rng(3)
+    model = WorldModel()
+    for _ in range(300):
+        model.observe(int(rng.integers(N_STATES)), int(rng.integers(N_MOTIONS)), int(rng.integers(N_STATES)),
+                      bool(rng.random() < 0.1))
+    pop = random_population(rng, 30)
+    plain = evaluate_population(pop, model)
+    assert not plain.fails.any()
+    with_codes = evaluate_population(pop, model, rates=prior_codes())
+    assert [with_codes.row(i) for i in range(30)] == [plain.row(i) for i in range(30)]
+    obstacle = int(((model.states & OBSTACLE_MASK) != 0).sum())
+    assert (with_codes.fails == PRIOR_CODE * obstacle).all()
+
+
+def test_fitness_term_and_the_integer_score_agree():
+    """A sure failure weighs a crash; 10 D N x fitness is the engine's integer score, less F."""
+    n = 40
+    c, l, d = np.array([3, 3, 0]), np.array([1, 1, 5]), np.array([500, 500, 1200])
+    f = np.array([0, RATE_ONE, 777])
+    base = fitness(EvalResult(c, l, d), n)
+    with_f = fitness(EvalResult(c, l, d, f), n)
+    assert np.allclose(base - with_f, W_FAIL * f / (n * RATE_ONE))
+    assert np.isclose(with_f[1], fitness(EvalResult(c + 1, l, d), n)[0])  # rate 1 = one more crash
+    ints = score(c, l, d, n, f)
+    assert (ints == score(c, l, d, n) - f).all()
+    assert np.allclose(ints / (10 * MAX_MOTION_DISTANCE_MM * n), with_f)
+
+
+def test_marks_judge_the_last_pairs_of_a_failed_leg_once_each():
+    marks = FailureMarks()
+    for _ in range(3):
+        marks.executed_pair(9, 1, reached=False)
+    marks.executed_pair(9, 2, reached=True)  # the leg reached its target: nothing pending
+    assert marks.pending == []
+    steps = [(10 + i, 0) for i in range(HORIZON + 2)] + [(10, 0)]
+    for s, a in steps:
+        marks.executed_pair(s, a, reached=False)
+    marks.failure()
+    failed = {(int(s), int(a)) for s, a in zip(*np.nonzero(marks.failed))}
+    assert failed == set(steps[-HORIZON:]) and marks.failed.max() == 1
+    assert (10, 0) in failed and (11, 0) not in failed and marks.pending == []
+    assert marks.executed[9, 1] == 3 and marks.failed[9, 1] == 0
+
+
+def test_changes_are_what_the_board_does_not_hold():
+    marks = FailureMarks()
+    assert marks.changes() == []
+    marks.executed_pair(65, 3, reached=False)
+    marks.failure()
+    assert marks.changes() == [(65, 3, 138)]
+    assert marks.changes() == []
+    marks.executed_pair(65, 3, reached=True)
+    assert marks.changes() == [(65, 3, (2 * (RATE_ONE + PRIOR_CODE) + 3) // 6)]
+
+
+SMALL = dict(arena="one_obstacle", n_targets=4, population=40, tournament=5, generations_per_phase=3,
+             max_leg_steps=300, loop_window=60)
+
+
+def test_lifetime_writes_the_marks_codes_to_the_board():
+    run = make_run(OnlineConfig(seed=5, fail_rates=True, **SMALL)).run()
+    assert run.marks.failed.sum() > 0
+    assert (run.evaluator.rates == run.marks.written).all()  # as of the last learning phase
+    assert any(p["best_fails"] > 0 for p in run.phases)
+    plain = make_run(OnlineConfig(seed=5, fail_rates=False, **SMALL)).run()
+    assert plain.marks is None and all(p["best_fails"] == 0 for p in plain.phases)
