@@ -40,6 +40,7 @@ from amaranth.lib import crc, data, enum, wiring
 from amaranth.lib import stream
 from amaranth.lib.wiring import In, Out
 
+from ga.fail_rates import RATE_BITS
 from ga.genome import GENOME_BITS, N_ROWS, ROW_BITS
 from ga.motions import N_INPUTS, N_OUTPUTS
 from hdl.ports import RESULT_LAYOUT, RowWriteSignature
@@ -71,6 +72,7 @@ class Command(enum.Enum, shape=8):
     LOAD_GENOME = 0x22      # LOAD_GENOME_REQUEST + genome bytes: population slot `index`
     EVALUATE = 0x23         # EVALUATE_REQUEST -> EVALUATE_REPLY: slots 0..count-1
     READ_RESULTS = 0x24     # READ_RESULTS_REQUEST -> count x RESULT_REPLY
+    WRITE_RATE = 0x25       # RATE_REQUEST: one failure-rate code (ga.fail_rates)
     SEED = 0x30             # SEED_REQUEST: the learning engine's generators (hdl.learner)
     LEARN = 0x31            # LEARN_REQUEST -> LEARN_REPLY: G generations on the chip
     READ_GENOME = 0x32      # READ_GENOME_REQUEST -> genome bytes of population slot `index`
@@ -109,6 +111,12 @@ OBSERVE_REQUEST = data.StructLayout({
     "_pad": 4,
     "next": N_INPUTS,
     "reached": N_INPUTS,    # the state actually reached this time: joins S
+})
+RATE_REQUEST = data.StructLayout({
+    "state": N_INPUTS,      # the code of (state, motion) := code (hdl.ports.RateWriteSignature)
+    "motion": N_OUTPUTS,
+    "_pad": 8 - N_OUTPUTS,
+    "code": RATE_BITS,
 })
 LOAD_GENOME_REQUEST = data.StructLayout({"index": 16})  # then the genome bytes
 EVALUATE_REQUEST = data.StructLayout({"count": 16})
@@ -168,11 +176,12 @@ REQUEST_LENGTH = {
     Command.LOAD_GENOME: layout_bytes(LOAD_GENOME_REQUEST) + genome_bytes(),
     Command.EVALUATE: layout_bytes(EVALUATE_REQUEST),
     Command.READ_RESULTS: layout_bytes(READ_RESULTS_REQUEST),
+    Command.WRITE_RATE: layout_bytes(RATE_REQUEST),
     Command.SEED: layout_bytes(SEED_REQUEST),
     Command.LEARN: layout_bytes(LEARN_REQUEST),
     Command.READ_GENOME: layout_bytes(READ_GENOME_REQUEST),
 }
-assert max(layout_bytes(layout) for layout in (OBSERVE_REQUEST, READ_RESULTS_REQUEST, SEED_REQUEST,
+assert max(layout_bytes(layout) for layout in (OBSERVE_REQUEST, RATE_REQUEST, READ_RESULTS_REQUEST, SEED_REQUEST,
                                                LEARN_REQUEST, READ_GENOME_REQUEST)) <= ARG_BYTES
 
 
