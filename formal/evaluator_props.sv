@@ -26,19 +26,24 @@ module evaluator_props #(
     input wire         model_crash,
     input wire         model_valid,
     input wire         model_we,
+    input wire [7:0]   rate_state,
+    input wire [2:0]   rate_motion,
+    input wire [`RATE_BITS-1:0] rate_code,
+    input wire         rate_we,
     input wire [7:0]   state_value,
     input wire         state_we,
     input wire         clear,
     input wire         reflex_en,
     input wire         start,
-    input wire [`ENTRY_BITS-1:0] ram_data  // the RAM's read data (RAM abstraction, see above)
+    input wire [`ENTRY_BITS-1:0] ram_data,  // the RAM's read data (RAM abstraction, see above)
+    input wire [`RATE_BITS-1:0] rate_data   // the failure-rate RAM's read data (the same)
 );
     localparam W = 19;
     localparam RAM_DEPTH = 2048;
 
     wire        ready, busy, done;
     wire [8:0]  crashes, loops, n_states;
-    wire [15:0] distance, cycles;
+    wire [15:0] distance, fails, cycles;
     evaluator_ehw dut (`DUT_PORTS);
 
     // The DUT's internal registers and wires, connected by formal/ports.py after flatten.
@@ -52,6 +57,9 @@ module evaluator_props #(
     (* keep *) wire           probe_wr_en;
     (* keep *) wire [10:0]    probe_wr_addr;
     (* keep *) wire [`ENTRY_BITS-1:0] probe_wr_data;
+    (* keep *) wire           probe_rate_wr_en;
+    (* keep *) wire [10:0]    probe_rate_wr_addr;
+    (* keep *) wire [`RATE_BITS-1:0] probe_rate_wr_data;
 
     // The RAM word of the model port's entry (hdl.ports.ModelEntry, macros from formal/ports.py):
     // it moves when valid and not a crash; otherwise its next field codes crash or unknown.
@@ -81,7 +89,7 @@ module evaluator_props #(
     reg [7:0]   state_value_q;
     reg [255:0] in_set_q, tested_q;
     reg [8:0]   n_states_q, crashes_q, loops_q;
-    reg [15:0]  distance_q, cycles_q;
+    reg [15:0]  distance_q, fails_q, cycles_q;
     reg [K*W-1:0] arch_q;
     reg [11:0]  since_reset;   // cycles since the first cycle after a reset (saturates)
     reg         seen_ready;    // ready was high since that reset
@@ -102,6 +110,7 @@ module evaluator_props #(
         crashes_q <= crashes;
         loops_q <= loops;
         distance_q <= distance;
+        fails_q <= fails;
         cycles_q <= cycles;
         arch_q <= probe_arch;
         if (rst) begin
@@ -145,7 +154,7 @@ module evaluator_props #(
             // (3) results change only at the edge that raises done, and hold until the next.
             if (!done)
                 assert (crashes == crashes_q && loops == loops_q && distance == distance_q
-                        && cycles == cycles_q);
+                        && fails == fails_q && cycles == cycles_q);
 
             // (4) model writes and state additions only when ready: a RAM write is the host's
             //     (exactly the entry on the model port, coded) while ready, the Clear sweep's zero
@@ -166,6 +175,16 @@ module evaluator_props #(
                          : (in_clear && probe_wr_data == 0 && probe_wr_addr == probe_clear_addr));
         if (idle && model_we)
             assert (probe_wr_en);
+        //     The same for the failure-rate codes: the host's code while ready, the Clear sweep's
+        //     prior (a pair never executed) otherwise.
+        if (probe_rate_wr_en)
+            assert (idle ? (probe_rate_wr_addr == {rate_state, rate_motion} && probe_rate_wr_data == rate_code)
+                         : (in_clear && probe_rate_wr_data == `PRIOR_CODE
+                            && probe_rate_wr_addr == probe_clear_addr));
+        if (idle && rate_we)
+            assert (probe_rate_wr_en);
+        if (in_clear)
+            assert (probe_rate_wr_en);
 
         // (5) ready within 2,049 cycles of reset: Boot, then Clear sweeps address
         //     since_reset - 1 (each of the 2,048 once, in order, writing 0), then Idle.

@@ -43,6 +43,10 @@ EVALUATOR_PORTS = {
     "model_crash": "model__crash",
     "model_valid": "model__valid",
     "model_we": "model__we",
+    "rate_state": "rate__state",
+    "rate_motion": "rate__motion",
+    "rate_code": "rate__code",
+    "rate_we": "rate__we",
     "state_value": "state_value",
     "state_we": "state_we",
     "clear": "clear",
@@ -54,6 +58,7 @@ EVALUATOR_PORTS = {
     "crashes": "crashes",
     "loops": "loops",
     "distance": "distance",
+    "fails": "fails",
     "cycles": "cycles",
     "n_states": "n_states",
 }
@@ -68,6 +73,9 @@ EVALUATOR_PROBES = {
     "probe_wr_en": "wr__en",           # the RAM's write port
     "probe_wr_addr": "wr__addr",
     "probe_wr_data": "wr__data",
+    "probe_rate_wr_en": "rate_wr__en",  # the failure-rate RAM's write port
+    "probe_rate_wr_addr": "rate_wr__addr",
+    "probe_rate_wr_data": "rate_wr__data",
 }
 # hdl.link_protocol.FrameReceiver, module frame_receiver (the host link's frame decoder).
 LINK_PORTS = {
@@ -88,8 +96,9 @@ LINK_PROBES = {
     "probe_crc": "crc.crc_reg",   # lib.crc.Processor's CRC register
 }
 
-# The RAM abstraction: the memory's cells are deleted and its read data is this harness input.
+# The RAM abstraction: the memories' cells are deleted and their read data are harness inputs.
 EVALUATOR_RAM_READ = ("rd__data", "ram_data")
+EVALUATOR_RATE_READ = ("rate_rd__data", "rate_data")
 
 
 def fsm_encoding(component) -> dict[str, int]:
@@ -118,9 +127,12 @@ def fsm_macros(encoding: dict[str, int]) -> str:
 def entry_macros() -> str:
     """Verilog ``define``s of the world-model RAM word (``hdl.ports.ModelEntry``): its width
     ``ENTRY_BITS``, the bit ``ENTRY_MOVES``, the field ``ENTRY_NEXT`` (a part-select range) and the
-    codes ``ENTRY_UNKNOWN`` and ``ENTRY_CRASH`` of ``next`` in a word that does not move."""
+    codes ``ENTRY_UNKNOWN`` and ``ENTRY_CRASH`` of ``next`` in a word that does not move; and of
+    the failure-rate RAM's word (``ga.fail_rates``): ``RATE_BITS`` and the Clear sweep's
+    ``PRIOR_CODE``."""
     from amaranth.lib import data
 
+    from ga.fail_rates import PRIOR_CODE, RATE_BITS
     from hdl.ports import ModelEntry
 
     layout = data.Layout.cast(ModelEntry)
@@ -129,7 +141,8 @@ def entry_macros() -> str:
             f"`define ENTRY_MOVES {moves.offset}\n"
             f"`define ENTRY_NEXT {nxt.offset + nxt.width - 1}:{nxt.offset}\n"
             f"`define ENTRY_UNKNOWN {ModelEntry.UNKNOWN}\n"
-            f"`define ENTRY_CRASH {ModelEntry.CRASH}\n")
+            f"`define ENTRY_CRASH {ModelEntry.CRASH}\n"
+            f"`define RATE_BITS {RATE_BITS}\n`define PRIOR_CODE {PRIOR_CODE}\n")
 
 
 def probe_commands(probes: dict[str, str], instance: str = "dut") -> list[str]:

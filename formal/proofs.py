@@ -176,6 +176,7 @@ def _evaluator_build(k: int, count_depth: int | None = None):
         (workdir / "dut.vh").write_text(ports.port_macro(ports.EVALUATOR_PORTS)
                                         + ports.fsm_macros(encoding) + ports.entry_macros())
         ram_read, harness_input = ports.EVALUATOR_RAM_READ
+        rate_read, rate_input = ports.EVALUATOR_RATE_READ
         if count_depth is None:
             solve = ("sat -tempinduct -prove-asserts -set-assumes -set-at 1 rst 1 -seq 1 "
                      "-maxsteps 3 -verify -show-inputs")
@@ -194,12 +195,14 @@ def _evaluator_build(k: int, count_depth: int | None = None):
             f"hierarchy -top evaluator_props -chparam K {k} -chparam A {row_addr_bits(k)}",
             "proc -norom",  # (small lookup tables stay logic: the only memory is the RAM)
             "flatten",
-            # the RAM abstraction: no memory; its read data is a free input of the harness
+            # the RAM abstraction: no memory (the model's, the rates'); their read data are free
+            # inputs of the harness
             # (memory_dff folds the read register into the memory's read port, so deleting the
             # memory leaves its read data undriven, to be driven by the harness input)
             "memory -nomap",
             "delete t:$mem_v2 r:SIZE=2048",
             f"connect -nounset -set dut.{ram_read} {harness_input}",
+            f"connect -nounset -set dut.{rate_read} {rate_input}",
             *ports.probe_commands(ports.EVALUATOR_PROBES),
             "opt_clean",
             "check -assert",  # no undriven wire left: every probe and the RAM data are connected
@@ -214,7 +217,8 @@ def _evaluator_build(k: int, count_depth: int | None = None):
 EVALUATOR_ASSUMPTIONS = (
     "rst is high in the first cycle (the base case); every input is free in every later cycle",
     "RAM abstraction: the world-model RAM is removed; the entry the trace engine reads is any "
-    "value in every cycle, subject to the next assumption",
+    "value in every cycle, subject to the next assumption; so is the failure-rate RAM, whose "
+    "code is any value in every cycle",
     "world-model invariant (ga.world_model: observe() adds both states to S): an entry that "
     "moves (valid, no crash) read while tracing has its next state in S",
     "the harness reads the DUT's FSM state (codes from Amaranth's FSM), S, the tested set, the "
