@@ -117,7 +117,7 @@ class AmaranthSystem(SimulatorJobs):
 
 class BoardLog:
     """What crossed the board interface, for comparing backends: every downloaded genome (hex)
-    and a digest of every evaluation's (crashes, loops, distance)."""
+    and a digest of every evaluation's (crashes, loops, distance, fails)."""
 
     def __init__(self):
         self.downloads: list[str] = []
@@ -132,7 +132,7 @@ class BoardLog:
         import hashlib
 
         data = np.stack([np.asarray(counts.crashes), np.asarray(counts.loops),
-                         np.asarray(counts.distance)]).astype(np.int64)
+                         np.asarray(counts.distance), np.asarray(counts.fails)]).astype(np.int64)
         self.evaluations.append(hashlib.sha1(data.tobytes()).hexdigest()[:16])
 
     def to_dict(self, motions=()) -> dict:
@@ -282,6 +282,12 @@ class HDLEvaluatorBoard:
         if self.reference is not None:
             self.reference.observe(state, motion, next_state, crashed)
 
+    def write_rates(self, changes) -> None:
+        changes = [(int(s), int(a), int(code)) for s, a, code in changes]
+        self.system.call(self.host.write_rates, changes)
+        if self.reference is not None:
+            self.reference.write_rates(changes)
+
     def evaluate(self, population: np.ndarray) -> EvalCounts:
         from ga.genome import validate_rows
         from cosim.hardware_time import stream_cycles
@@ -294,15 +300,16 @@ class HDLEvaluatorBoard:
             index = sample_indices(len(population), self.sample, self.calls)
         self.calls += 1
         counts, cycles = self.system.call(self.host.evaluate, population[index])
-        arr = np.asarray(counts, dtype=np.int64).reshape(-1, 3)
-        result = EvalCounts(crashes=arr[:, 0], loops=arr[:, 1], distance=arr[:, 2], cycles=int(cycles))
+        arr = np.asarray(counts, dtype=np.int64).reshape(-1, 4)
+        result = EvalCounts(crashes=arr[:, 0], loops=arr[:, 1], distance=arr[:, 2], fails=arr[:, 3],
+                            cycles=int(cycles))
         self.evaluations += len(population)
         self.modeled_cycles += stream_cycles(len(population), self.host.model.n_states)
         if self.reference is not None:
             t0 = time.process_time()
             expected = self.reference.evaluate(population)
             self.reference_time_s += time.process_time() - t0
-            for name in ("crashes", "loops", "distance"):
+            for name in ("crashes", "loops", "distance", "fails"):
                 got, want = getattr(result, name), np.asarray(getattr(expected, name))[index]
                 if not np.array_equal(got, want):
                     i = int(np.flatnonzero(got != want)[0])
@@ -310,7 +317,7 @@ class HDLEvaluatorBoard:
                                         f"the reference gives {want[i]} (model of {self.host.model.n_states} states)")
             if len(index) < len(population):
                 result = EvalCounts(crashes=np.asarray(expected.crashes), loops=np.asarray(expected.loops),
-                                    distance=np.asarray(expected.distance),
+                                    distance=np.asarray(expected.distance), fails=np.asarray(expected.fails),
                                     cycles=stream_cycles(len(population), self.host.model.n_states))
         self.log.evaluation(result)
         return result

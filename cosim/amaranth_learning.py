@@ -3,7 +3,8 @@
 :class:`HDLLearningBoard` is the board over any engine: a ``call(job, *args)`` that runs a
 coroutine in the simulator and an ``hdl.learning_system_top.LearnerHost`` over that simulator's
 pins (the one host driver). The reference learning board (``cosim.boards``) runs beside it and
-every learn is checked against it (``check=True``): the download, its counts and the cycles.
+every learn is checked against it (``check=True``): the download, its counts and fail count, and
+the cycles.
 
 - ``amaranth`` (:class:`AmaranthLearningBoard`, here): a bare ``Learner`` in Amaranth's simulator,
   as ``cosim.amaranth_backend``: one Simulator for the whole run, one serving testbench that runs
@@ -52,24 +53,31 @@ class HDLLearningBoard:
         if self.reference is not None:
             self.reference.observe(state, motion, next_state, crashed)
 
+    def write_rates(self, changes) -> None:
+        changes = [tuple(map(int, change)) for change in changes]
+        self.call(self.host.write_rates, changes)
+        if self.reference is not None:
+            self.reference.write_rates(changes)
+
     state_dict = checked_state_dict  # the reference's engine state (no load_state: resume replays)
 
     async def _learn(self, generations, avoid):
-        index, counts, _score, register, escaped = await self.host.learn(generations, self.reflex, avoid)
+        index, counts, fails, _score, register, escaped = await self.host.learn(generations, self.reflex, avoid)
         rows = await self.host.read_genome(index)
-        return np.array(rows, dtype=np.uint32), counts, register + 1, escaped
+        return np.array(rows, dtype=np.uint32), counts + (fails,), register + 1, escaped
 
     def learn(self, generations: int, avoid: tuple[int, int] | None = None) -> LearnResult:
         rows, counts, edges, escaped = self.call(self._learn, int(generations), avoid)
         self.cycles += edges
-        result = LearnResult(rows, *counts, cycles=edges, escaped=escaped)
+        result = LearnResult(rows, *counts[:3], cycles=edges, escaped=escaped, fails=counts[3])
         if self.reference is not None:
             want = self.reference.learn(generations, avoid)
-            if not (np.array_equal(want.rows, rows) and (want.crashes, want.loops, want.distance) == counts
-                    and want.cycles == edges and want.escaped == escaped):
+            want_counts = (want.crashes, want.loops, want.distance, want.fails)
+            if not (np.array_equal(want.rows, rows) and want_counts == counts and want.cycles == edges
+                    and want.escaped == escaped):
                 raise BoardMismatch(f"learn({generations}, avoid={avoid}): HDL {counts} in {edges} "
-                                    f"cycles, reference {(want.crashes, want.loops, want.distance)} in "
-                                    f"{want.cycles}; downloads equal: {np.array_equal(want.rows, rows)}")
+                                    f"cycles, reference {want_counts} in {want.cycles} (crashes, loops, "
+                                    f"distance, fails); downloads equal: {np.array_equal(want.rows, rows)}")
         return result
 
 

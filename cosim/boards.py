@@ -242,6 +242,7 @@ class LearnResult:
     distance: int
     cycles: int  # the engine's clock cycles for this learn (its exact count on every backend)
     escaped: bool = False  # the download is the escape child (not the best of the last pass)
+    fails: int = 0  # its failure-rate count F (ga.fail_rates), with the board's rate codes
 
 
 class LearningBoard(Protocol):
@@ -255,16 +256,22 @@ class LearningBoard(Protocol):
     def observe(self, state: int, motion: int, next_state: int, crashed: bool) -> None:
         """Apply one observed transition (SPEC section 7 update rule) to the board's model."""
 
+    def write_rates(self, changes) -> None:
+        """Write failure-rate codes (``ga.fail_rates``): (state, motion, code) triples, to every
+        lane. A fresh or cleared board holds ``PRIOR_CODE`` for every pair."""
+
     def learn(self, generations: int, avoid: tuple[int, int] | None = None) -> LearnResult:
         """Run ``generations`` generations; the download: the best of the last, or with
         ``avoid`` = (state, motion) the fittest whose motion in ``state`` is another."""
 
 
 class ReferenceLearningBoard:
-    """The learning board as ``ga.hardware_ga.HardwareGA`` plus ``ga.world_model.WorldModel``."""
+    """The learning board as ``ga.hardware_ga.HardwareGA`` plus ``ga.world_model.WorldModel``
+    and the rate codes (``rates``, (256, 8), ``ga.fail_rates``)."""
 
     def __init__(self, config, seed: int, population, reflex: bool = True,
                  distance_rule: str = "covered"):
+        from ga.fail_rates import prior_codes
         from ga.hardware_ga import HardwareGA
         from ga.motions import motion_distances
         from ga.world_model import WorldModel
@@ -273,6 +280,7 @@ class ReferenceLearningBoard:
         self.config = config
         self.reflex, self.distance_rule = bool(reflex), distance_rule
         self.model = WorldModel()
+        self.rates = prior_codes()
         self.ga = HardwareGA(config, seed, population)
         self.cycles = 0
         self.time_s = 0.0  # CPU time of the reference's learns
@@ -283,9 +291,14 @@ class ReferenceLearningBoard:
     def observe(self, state: int, motion: int, next_state: int, crashed: bool) -> None:
         self.model.observe(int(state), int(motion), int(next_state), bool(crashed))
 
+    def write_rates(self, changes) -> None:
+        for state, motion, code in changes:
+            self.rates[state, motion] = code
+
     def state_dict(self) -> dict:
         """The engine between two learns (``HardwareGA.state_dict``) and the cycle counter: with
-        the world model (rebuilt by replaying the observations) the whole board."""
+        the world model and the rate codes (rebuilt by replaying the observations and the
+        failure marks) the whole board."""
         return {"engine": self.ga.state_dict(), "cycles": self.cycles}
 
     def load_state(self, d: dict) -> None:
@@ -298,11 +311,13 @@ class ReferenceLearningBoard:
 
     def learn(self, generations: int, avoid: tuple[int, int] | None = None) -> LearnResult:
         t0 = time.process_time()
-        rows, counts, cycles = self.ga.learn(self.model, generations, self.reflex, self.distance_rule, avoid)
+        rows, counts, cycles = self.ga.learn(self.model, generations, self.reflex, self.distance_rule, avoid,
+                                             self.rates)
         self.time_s += time.process_time() - t0
         self.cycles += cycles
-        return LearnResult(rows, *counts, cycles=cycles,
-                           escaped=self.ga.download_index != self.ga.best_index)
+        index = self.ga.download_index
+        return LearnResult(rows, *counts, cycles=cycles, escaped=index != self.ga.best_index,
+                           fails=int(self.ga.counts.fails[index]))
 
 
 def checked_state_dict(board) -> dict:

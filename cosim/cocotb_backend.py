@@ -17,6 +17,7 @@ Each board call is a coroutine of ``hdl.system_top.SystemHost`` run in the simul
 - ``controller.load(rows)``: 50 row writes into the controller EHW's shadow, commit with the last;
 - ``controller.motion(s)``: the sensor bits for one cycle, the registered motion read back;
 - ``evaluator.observe(...)``: the resulting world-model entry and both states written (2 cycles);
+- ``evaluator.write_rates(changes)``: failure-rate codes (``ga.fail_rates``), one a cycle;
 - ``evaluator.evaluate(pop)``: the population written into the streamer's RAM (one genome per
   cycle), one ``go``, then *one* wait for ``pop_done`` (no Python while the evaluator works:
   the streamer loads each controller's rows into the evaluator and starts it, overlapped with the

@@ -7,8 +7,9 @@ test (``cosim.cocotb_online``), but on ``learning_system_top`` (``hdl.learning_s
 system top's controller EHW drives the robot (``HDLControllerBoard``, unchanged), and the learning
 board is the engine (``hdl.learner.Learner``, ports ``lrn_*``) driven by the same
 ``LearnerHost`` as the Amaranth learning board (``cosim.amaranth_learning.HDLLearningBoard``):
-observations (2 cycles each), ``learn`` (one wait for ``done``: no Python while the engine runs),
-the download read back (50 cycles). Every learn is checked against the reference learning board.
+observations (2 cycles each), failure-rate codes (1 cycle each), ``learn`` (one wait for
+``done``: no Python while the engine runs), the download read back (50 cycles). Every learn is
+checked against the reference learning board (download, counts, fail count, cycles).
 
 The engine's parameters (population, tournament, lanes, rates) are constants of the circuit: the
 launcher (``cosim.cocotb_launch``) writes the Verilog for the run's parameters, builds it under a

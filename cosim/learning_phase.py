@@ -5,7 +5,11 @@ the NumPy GA breeds, the evaluator board evaluates every population. With ``--ga
 learning board (``cosim.boards.LearningBoard``) does both on the chip and only the download comes
 back: ``learn_on_chip`` is that phase. It keeps the default on-line options' behaviour: after a
 time-out or loop in an obstacle state the download is the fittest individual whose motion in the
-blamed state differs from the failed one (the escape, computed on the chip).
+blamed state differs from the failed one (the escape, computed on the chip). With
+``--fail-rates`` the host writes the changed rate codes to the board before the phase
+(``cosim.online``) and the engine's score loses the fail count F, as the host GA's fitness does;
+without, the board keeps ``PRIOR_CODE`` everywhere, F is the same for every child and the
+selection is that of the three SPEC terms (the record's fitness then leaves F out).
 """
 
 from __future__ import annotations
@@ -55,11 +59,13 @@ def learn_on_chip(run, record: dict, reason: str, state: int, motion: int) -> di
     run.genetic_operations += cfg.generations_per_phase * cfg.population
     run.best_rows = result.rows.copy()
     run.controller.load(result.rows)
-    counts = EvalResult(*(np.array([v]) for v in (result.crashes, result.loops, result.distance)))
+    fails = result.fails if cfg.fail_rates else 0  # SPEC section 7's three terms without --fail-rates
+    counts = EvalResult(*(np.array([v]) for v in (result.crashes, result.loops, result.distance, fails)))
     new_motion = int(run.controller.motion(state))
     record.update({
         "best_fitness": round(float(fitness(counts, run.mirror.n_states)[0]), 6),
         "best_crashes": result.crashes, "best_loops": result.loops, "best_distance": result.distance,
+        "best_fails": fails,
         "new_motion": new_motion, "changed": new_motion != int(motion),
         "engine_cycles": result.cycles,
     })

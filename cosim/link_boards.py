@@ -14,9 +14,11 @@ board: ``cosim.link_learning``.) The same board classes serve the ``uart`` backe
   evaluator, ``cosim.link_learning.LinkLearningBoard``).
 - :class:`LinkEvaluatorBoard`: keeps the host's copy of the world model (the update rule of SPEC
   section 7 needs the current entry, as ``hdl.system_top.SystemHost``) and sends the resulting
-  entry with OBSERVE; evaluates a population in chunks of the board's ``p_max`` slots:
-  LOAD_GENOME each (pipelined, ``LinkClient.load_genomes``), EVALUATE, READ_RESULTS. A chunk answered NOT_LOADED (a damaged frame touched
-  a single-buffered evaluator's rows) is loaded again, at most ``retries`` times.
+  entry with OBSERVE; writes failure-rate codes with WRITE_RATE, one a frame; evaluates a
+  population in chunks of the board's ``p_max`` slots: LOAD_GENOME each (pipelined,
+  ``LinkClient.load_genomes``), EVALUATE, READ_RESULTS (crashes, loops, distance, fails). A chunk
+  answered NOT_LOADED (a damaged frame touched a single-buffered evaluator's rows) is loaded
+  again, at most ``retries`` times.
 
 With ``check`` (default) each board keeps the reference model beside it and raises
 :class:`LinkMismatch` at the first motion or count that differs: a board never returns a wrong
@@ -119,7 +121,14 @@ class LinkEvaluatorBoard(LinkModelBoard):
         self.cycles = 0  # the evaluator's own cycles, from the EVALUATE replies
         self.reference = ReferenceEvaluatorBoard(reflex=reflex, distance_rule=distance_rule) if check else None
         self.client.set_reflex(reflex)
-        self.client.clear()
+        self.client.clear()  # every rate code at PRIOR_CODE too, as the reference's
+
+    def write_rates(self, changes) -> None:
+        changes = list(changes)
+        for state, motion, code in changes:
+            self.client.write_rate(state, motion, code)
+        if self.reference is not None:
+            self.reference.write_rates(changes)
 
     def _chunk(self, rows) -> tuple[list, int]:
         for attempt in range(self.retries + 1):
@@ -146,11 +155,12 @@ class LinkEvaluatorBoard(LinkModelBoard):
             counts += chunk_counts
             cycles += chunk_cycles
         self.cycles += cycles
-        arr = np.asarray(counts, dtype=np.int64).reshape(-1, 3)
-        result = EvalCounts(crashes=arr[:, 0], loops=arr[:, 1], distance=arr[:, 2], cycles=cycles)
+        arr = np.asarray(counts, dtype=np.int64).reshape(-1, 4)
+        result = EvalCounts(crashes=arr[:, 0], loops=arr[:, 1], distance=arr[:, 2], fails=arr[:, 3],
+                            cycles=cycles)
         if self.reference is not None:
             expected = self.reference.evaluate(population)
-            for name in ("crashes", "loops", "distance"):
+            for name in ("crashes", "loops", "distance", "fails"):
                 got, want = getattr(result, name), np.asarray(getattr(expected, name))
                 if not np.array_equal(got, want):
                     i = int(np.flatnonzero(got != want)[0])

@@ -26,9 +26,9 @@ from cosim.errors import UserError
 from hdl.link_protocol import (COUNTERS_REPLY, CRC_BYTES, EVALUATE_REPLY, EVALUATE_REQUEST,
                                HEADER_BYTES, IDENTIFY_REPLY, LINK_CRC, LOAD_GENOME_REQUEST,
                                MOTION_REPLY, MOTION_REQUEST, NAME_BYTES, OBSERVE_REQUEST,
-                               READ_RESULTS_REQUEST, REFLEX_REQUEST, RESULT_BYTES, RESULT_REPLY,
-                               RESULTS_PER_READ, SYNC, Command, Design, FrameHeader, Status,
-                               genome_bytes)
+                               RATE_REQUEST, READ_RESULTS_REQUEST, REFLEX_REQUEST, RESULT_BYTES,
+                               RESULT_REPLY, RESULTS_PER_READ, SYNC, Command, Design, FrameHeader,
+                               Status, genome_bytes)
 
 RETRIES = 3  # resends of one request after an error reply or a timeout
 PIPELINE = 2  # LOAD_GENOME frames in flight (the board answers one while the next arrives)
@@ -260,6 +260,11 @@ class LinkClient:
     def clear(self) -> None:
         self.request(Command.CLEAR, reply_length=0)
 
+    def write_rate(self, state: int, motion: int, code: int) -> None:
+        """The failure-rate code of (state, motion) := code (``ga.fail_rates``)."""
+        self.request(Command.WRITE_RATE, pack(RATE_REQUEST, state=int(state), motion=int(motion),
+                                              code=int(code)), reply_length=0)
+
     def load_genome(self, index: int, rows) -> None:
         self.request(Command.LOAD_GENOME, pack(LOAD_GENOME_REQUEST, index=int(index)) + genome_payload(rows),
                      reply_length=0)
@@ -327,8 +332,8 @@ class LinkClient:
                              reply_length=_layout_bytes(EVALUATE_REPLY))
         return int(unpack(EVALUATE_REPLY, reply).cycles)
 
-    def read_results(self, first: int, count: int) -> list[tuple[int, int, int]]:
-        """(crashes, loops, distance) of slots first..first+count-1."""
+    def read_results(self, first: int, count: int) -> list[tuple[int, int, int, int]]:
+        """(crashes, loops, distance, fails) of slots first..first+count-1."""
         out = []
         for start in range(first, first + count, RESULTS_PER_READ):
             n = min(RESULTS_PER_READ, first + count - start)
@@ -336,5 +341,5 @@ class LinkClient:
                                  reply_length=n * RESULT_BYTES)
             for i in range(n):
                 r = unpack(RESULT_REPLY, reply[i * RESULT_BYTES:(i + 1) * RESULT_BYTES]).result
-                out.append((int(r.crashes), int(r.loops), int(r.distance)))
+                out.append((int(r.crashes), int(r.loops), int(r.distance), int(r.fails)))
         return out

@@ -5,13 +5,14 @@ port) and, over its simulated line, of the ``uart`` backend (``cosim.uart_backen
 
 What crosses the link: the population once (LOAD_GENOME, pipelined), the seed (SEED), every
 observation (OBSERVE, 4 bytes: the host keeps its copy of the world model for the update rule,
-``cosim.link_boards.LinkModelBoard``), and per learning phase one LEARN (4 bytes out, 16 back)
-and one READ_GENOME of the download (119 bytes back), which the run then loads into the
-controller board beside the engine (LOAD_CONTROLLER, 119 bytes out).
+``cosim.link_boards.LinkModelBoard``), every changed failure-rate code (WRITE_RATE, 3 bytes, with
+``--fail-rates``), and per learning phase one LEARN (4 bytes out, 18 back) and one READ_GENOME of
+the download (119 bytes back), which the run then loads into the controller board beside the
+engine (LOAD_CONTROLLER, 119 bytes out).
 
 With ``check`` (default) the reference learning board (``ga.hardware_ga``) runs beside it and
-:class:`cosim.link_boards.LinkMismatch` is raised at the first learn whose download, counts,
-cycles or escape flag differ: the board never returns a wrong result silently.
+:class:`cosim.link_boards.LinkMismatch` is raised at the first learn whose download, counts, fail
+count, cycles or escape flag differ: the board never returns a wrong result silently.
 """
 
 from __future__ import annotations
@@ -68,6 +69,14 @@ class LinkLearningBoard(LinkModelBoard):
 
     state_dict = checked_state_dict  # the reference's engine state (no load_state: resume replays)
 
+    def write_rates(self, changes) -> None:
+        """One WRITE_RATE frame a code (every lane's rate RAM)."""
+        changes = [tuple(map(int, change)) for change in changes]
+        for state, motion, code in changes:
+            self.client.write_rate(state, motion, code)
+        if self.reference is not None:
+            self.reference.write_rates(changes)
+
     def read_genome(self, index: int) -> np.ndarray:
         from ga.genome import rows_from_int
 
@@ -86,12 +95,12 @@ class LinkLearningBoard(LinkModelBoard):
         rows = self.read_genome(int(reply.index))
         # the learn's clock edges, as on every backend: the busy cycles and the edge leaving Idle
         result = LearnResult(rows, int(reply.crashes), int(reply.loops), int(reply.distance),
-                             cycles=int(reply.cycles) + 1, escaped=bool(reply.escaped))
+                             cycles=int(reply.cycles) + 1, escaped=bool(reply.escaped), fails=int(reply.fails))
         self.cycles += result.cycles
         if self.reference is not None:
             want = self.reference.learn(generations, avoid)
-            got_counts = (result.crashes, result.loops, result.distance)
-            want_counts = (want.crashes, want.loops, want.distance)
+            got_counts = (result.crashes, result.loops, result.distance, result.fails)
+            want_counts = (want.crashes, want.loops, want.distance, want.fails)
             if not (np.array_equal(want.rows, rows) and got_counts == want_counts
                     and want.cycles == result.cycles and want.escaped == result.escaped):
                 raise LinkMismatch(f"{self.client.port}: learn({generations}, avoid={avoid}) gave {got_counts} in "

@@ -34,15 +34,14 @@ resumed run is the uninterrupted run, bit for bit.
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
-import dataclasses
-
-from cosim.boards import learning_top_drives, make_boards, make_learning_boards
+from cosim.boards import BackendUnavailable, learning_top_drives, make_boards, make_learning_boards
 from cosim.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
 from cosim.download import choose_download
 from cosim.failures import Track, blame, blame_cycle
@@ -391,8 +390,6 @@ def make_run(config: OnlineConfig, backend: str = "reference", out: Path | None 
             backend, hardware_ga_config(config), hardware_seed(config.seed), run.ga.ask(),
             controller=controller, reflex=config.reflex, distance_rule=config.distance_rule)
     if config.fail_rates and not hasattr(run.evaluator, "write_rates"):
-        from cosim.boards import BackendUnavailable
-
         raise BackendUnavailable(f"--fail-rates needs an evaluator board with a rate RAM; the {backend} "
                                  f"backend's {'learning' if hardware else 'evaluator'} board has none "
                                  f"yet (use --no-fail-rates)")

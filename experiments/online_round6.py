@@ -166,8 +166,10 @@ def lost(phases, target_log) -> int:
 
 
 def run_one(variant: str, seed: int, budget: int, settings: dict) -> dict:
-    # blamed like rounds 1-7 unless --set loop_blame=... (round 8 changed the default)
-    config = OnlineConfig(seed=seed, max_interactions=budget, **{"loop_blame": "leg", **settings})
+    # blamed like rounds 1-7 unless --set loop_blame=... (round 8 changed the default), SPEC
+    # section 7's fitness unless --set fail_rates=true (round 15 changed the default)
+    config = OnlineConfig(seed=seed, max_interactions=budget,
+                          **{"loop_blame": "leg", "fail_rates": False, **settings})
     run = make_run(config)
     v = Variant(config, run.controller, run.evaluator)
     v.variant = variant

@@ -271,8 +271,10 @@ class Round7(OnlineRun):
 
 
 def run_one(variant: str, seed: int, budget: int, settings: dict, params: dict) -> dict:
-    # blamed like rounds 1-7 unless --set loop_blame=... (round 8 changed the default)
-    config = OnlineConfig(seed=seed, max_interactions=budget, **{"loop_blame": "leg", **settings})
+    # blamed like rounds 1-7 unless --set loop_blame=... (round 8 changed the default), SPEC
+    # section 7's fitness unless --set fail_rates=true (round 15 changed the default)
+    config = OnlineConfig(seed=seed, max_interactions=budget,
+                          **{"loop_blame": "leg", "fail_rates": False, **settings})
     base = make_run(config)
     Round7.variant, Round7.params = variant, {**DEFAULT_PARAMS, **params}
     run = Round7(config, base.controller, base.evaluator)

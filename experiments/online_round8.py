@@ -126,7 +126,8 @@ def run_one(variant: str, seed: int, budget: int, settings: dict, params: dict, 
             defaults: dict | None = None) -> dict:
     """One lifetime of ``cls`` (Round8, or a later round's subclass with its ``defaults``)."""
     cls, defaults = cls or Round8, defaults or DEFAULT_PARAMS
-    config = OnlineConfig(seed=seed, max_interactions=budget, **settings)
+    # rounds 8-14 predate round 15's default fail_rates (their tables: --set fail_rates=true to add it)
+    config = OnlineConfig(seed=seed, max_interactions=budget, **{"fail_rates": False, **settings})
     base = make_run(config)
     cls.variant, cls.params = variant, {**defaults, **params}
     run = cls(config, base.controller, base.evaluator)

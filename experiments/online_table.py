@@ -127,6 +127,8 @@ def known_fields() -> set[str]:
 def rounds_1_7(options: dict) -> dict:
     """Every row predates round 8: its cycle stops are blamed like rounds 1-7 (``loop_blame``
     "leg"; a commit without that field has only that rule)."""
+    if "fail_rates" in known_fields() and "fail_rates" not in options:  # round 15's default
+        options = {**options, "fail_rates": False}
     if "loop_blame" in known_fields() and "loop_blame" not in options:
         return {**options, "loop_blame": "leg"}
     return options

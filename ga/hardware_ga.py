@@ -38,7 +38,9 @@ Child ``i`` is bred and evaluated by lane ``i % lanes`` in slot ``i // lanes``.
        ``ROW4`` (i < 4) or ``ROW5`` (i >= 4) is below ``connect_threshold`` (literal_p), as x_i
        when bit 8 + i of ``ROW3`` is 0, else NOT x_i; outputs ``((ROW3[0:8] * 7) >> 8) + 1``.
 - Every child is evaluated on the world model (``ga.evaluator``: the counts are the evaluator
-  board's) and scored with :func:`score`.
+  board's), its fail count F with the board's failure-rate codes (``ga.fail_rates``: the engine
+  holds a rate RAM per lane, ``PRIOR_CODE`` everywhere after reset or CLEAR), and scored with
+  :func:`score`.
 
 The escape (the on-line run's download after a time-out or loop, ``cosim.online``): given a
 blamed (state, motion) with an obstacle bit in the state, the engine also tracks the first child
@@ -48,9 +50,14 @@ returns that child when there is one.
 
 Fitness as an integer
 ---------------------
-``score = 5 D (N - crashes) + 4 D (N - loops) + distance`` with D = max dist[a] = 50 mm, which is
-exactly 10 D N times the SPEC's fitness 0.5 (1 - c/N) + 0.4 (1 - l/N) + 0.1 d / (N D): the same
-order as the exact (rational) fitness, with no division and no float (17 bits for N <= 256).
+``score = 5 D (N - crashes) + 4 D (N - loops) + distance - F`` with D = max dist[a] = 50 mm, which
+is exactly 10 D N times the fitness 0.5 (1 - c/N) + 0.4 (1 - l/N) + 0.1 d / (N D) - W_FAIL F /
+(N RATE_ONE) (``ga.evaluator.fitness``; RATE_ONE = 10 W_FAIL D makes the last term F): the same
+order as the exact (rational) fitness, with no division and no float. The score is signed (F up
+to RATE_ONE N can exceed the rest: -64,000..128,000 for N <= 256, ``SCORE_BITS`` = 18 bits, and
+the hardware compares signed). With the codes of a cleared board (no ``--fail-rates``) F is
+``PRIOR_CODE`` times the obstacle states of the model, the same for every child of a pass: the
+selection is that of the three SPEC terms.
 The float fitness of ``ga.evaluator.fitness`` orders the same way except between exactly equal
 fitnesses, whose floats may differ in the last bit (e.g. 4 more crashes and 5 fewer loops); the
 hardware treats those as ties, and a tie goes to the lower index (elite) or the first drawn
@@ -65,8 +72,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ga.evaluator import EvalResult, evaluate_population
+from ga.fail_rates import RATE_ONE, prior_codes
 from ga.genome import LITERAL_MASK, N_ROWS, OUTPUT_MASK, OUTPUT_SHIFT, ROW_DTYPE, validate_rows
-from ga.motions import MAX_MOTION_DISTANCE_MM, OBSTACLE_MASK
+from ga.motions import MAX_MOTION_DISTANCE_MM, N_STATES, OBSTACLE_MASK
 from ga.operators import DEFAULT_LITERAL_P, CONTRADICTION, DONT_CARE, NEGATIVE, POSITIVE, row_fires, row_outputs
 from ga.world_model import WorldModel
 from ga.xorshift import (  # noqa: F401  (the random source; re-exported for hdl.learner*, tests)
@@ -81,13 +89,14 @@ POLARITY_BIT = 4  # ROW0
 TO_DC_SHIFT = 8  # ROW0 bits 8..15
 CHOICE_MASK = 0xFF  # ROW1, ROW2, ROW3 bits 0..7
 FRESH_POLARITY_SHIFT = 8  # ROW3 bits 8..15: polarity of fresh literal i (0: x_i)
-SCORE_BITS = 17
+SCORE_BITS = 18  # signed: -RATE_ONE N <= score <= 10 D N (module docstring)
 STATE_FORMAT = 1  # of HardwareGA.state_dict
 # The lanes of the ulx3s-learner bitstream (hdl.fpga; docs/learner.md, "Resources and clock": the
 # lanes that fit 80 % of the LFE5U-85F's LUTs and route). The default of HardwareGAConfig and of the
 # on-line run's --lanes, so that `--ga hardware` on the reference is the board's lifetime: a lane
 # count changes the children's random streams (child i is bred by lane i % lanes).
 LEARNER_LANES = 7
+assert 10 * MAX_MOTION_DISTANCE_MM * N_STATES < 1 << (SCORE_BITS - 1) and RATE_ONE * N_STATES <= 1 << (SCORE_BITS - 1)
 
 
 # -- parameters --------------------------------------------------------------------------------------
@@ -173,7 +182,8 @@ class HardwareGAConfig:
 
 def score(crashes, loops, distance, n_states: int, fails=0) -> np.ndarray:
     """10 D N x the fitness, as integers (int64): 5 D (N - c) + 4 D (N - l) + d - F, F the
-    failure-rate count (``ga.fail_rates``: RATE_ONE = 10 W_FAIL D makes its term exactly F)."""
+    failure-rate count (``ga.fail_rates``: RATE_ONE = 10 W_FAIL D makes its term exactly F).
+    Negative when F outweighs the rest (the hardware's score is signed, ``SCORE_BITS``)."""
     d = MAX_MOTION_DISTANCE_MM
     c, l, dist, f = (np.asarray(v, dtype=np.int64) for v in (crashes, loops, distance, fails))
     return 5 * d * (n_states - c) + 4 * d * (n_states - l) + dist - f
@@ -333,12 +343,15 @@ class HardwareGA:
         return children
 
     def run_pass(self, model: WorldModel, reflex: bool = True, distance_rule: str = "covered",
-                 avoid: tuple[int, int] | None = None) -> None:
+                 avoid: tuple[int, int] | None = None, rates=None) -> None:
+        """One pass; ``rates``: the board's failure-rate codes (256, 8), None for a cleared
+        board's (``PRIOR_CODE`` everywhere, the engine after reset)."""
         children = self.breed()
-        counts = evaluate_population(children, model, reflex=reflex, distance_rule=distance_rule)
+        counts = evaluate_population(children, model, reflex=reflex, distance_rule=distance_rule,
+                                     rates=prior_codes() if rates is None else rates)
         self.population = children
         self.counts = counts
-        self.scores = score(counts.crashes, counts.loops, counts.distance, model.n_states)
+        self.scores = score(counts.crashes, counts.loops, counts.distance, model.n_states, counts.fails)
         self.escape_index = None
         if avoid is not None:
             state, motion = avoid
@@ -350,16 +363,18 @@ class HardwareGA:
         self.cycles += pass_cycles(model.n_states, self.config)
 
     def learn(self, model: WorldModel, generations: int, reflex: bool = True,
-              distance_rule: str = "covered", avoid: tuple[int, int] | None = None):
-        """``generations`` passes on ``model``. Returns (the download (50,), its (crashes, loops,
-        distance), the cycles the engine takes). The download is the best of the last pass, or
-        with ``avoid`` = (state, motion) (an obstacle state) the escape child if there is one."""
+              distance_rule: str = "covered", avoid: tuple[int, int] | None = None, rates=None):
+        """``generations`` passes on ``model`` (and the rate codes ``rates``: see `run_pass`).
+        Returns (the download (50,), its (crashes, loops, distance), the cycles the engine
+        takes); its fail count is ``counts.fails[download_index]``. The download is the best of
+        the last pass, or with ``avoid`` = (state, motion) (an obstacle state) the escape child if
+        there is one."""
         if isinstance(generations, bool) or not isinstance(generations, int) or generations < 1:
             raise ValueError(f"generations must be a positive integer, got {generations!r}")
         if avoid is not None and not (int(avoid[0]) & OBSTACLE_MASK):
             raise ValueError(f"the escape needs a state with an obstacle bit, got {avoid!r}")
         for g in range(generations):  # only the last pass's escape child is read
-            self.run_pass(model, reflex, distance_rule, avoid if g == generations - 1 else None)
+            self.run_pass(model, reflex, distance_rule, avoid if g == generations - 1 else None, rates)
         self.cycles += 1
         index = self.download_index
         return (self.population[index].copy(), self.counts.row(index),
@@ -374,7 +389,7 @@ class HardwareGA:
             "population": self.population.astype("<u4").tobytes().hex(),
             "scores": None if self.scores is None else self.scores.tolist(),
             "counts": None if counts is None else [counts.crashes.tolist(), counts.loops.tolist(),
-                                                   counts.distance.tolist()],
+                                                   counts.distance.tolist(), counts.fails.tolist()],
             "generators": self.generators.tolist(), "passes": self.passes, "cycles": self.cycles,
             "escape_index": self.escape_index,
         }
@@ -419,12 +434,13 @@ class HardwareGA:
 
 def learn(world_model: WorldModel, population, generations: int, seed: int,
           config: HardwareGAConfig | None = None, reflex: bool = True,
-          distance_rule: str = "covered", avoid: tuple[int, int] | None = None):
+          distance_rule: str = "covered", avoid: tuple[int, int] | None = None, rates=None):
     """One learning phase from scratch: a fresh engine seeded with ``seed`` holding
-    ``population`` (its first pass only evaluates). Returns (best rows, the last population,
-    counts (crashes, loops, distance) of the best; with ``avoid``, of the escape child)."""
+    ``population`` (its first pass only evaluates), with the rate codes ``rates`` (None: a
+    cleared board's). Returns (best rows, the last population, counts (crashes, loops, distance)
+    of the best; with ``avoid``, of the escape child)."""
     pop = validate_rows(population)
     config = config or HardwareGAConfig(population=pop.shape[0])
     ga = HardwareGA(config, seed, pop)
-    best, counts, _ = ga.learn(world_model, generations, reflex, distance_rule, avoid)
+    best, counts, _ = ga.learn(world_model, generations, reflex, distance_rule, avoid, rates)
     return best, ga.population.copy(), counts

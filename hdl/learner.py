@@ -9,8 +9,9 @@ Datapath
   ``Memory(shape=19, depth=2 * 2^ceil(log2 P))`` each, address ``Cat(index, buffer)``. One
   synchronous read port and one write port per bank: in a pass the lanes read the parents from
   the current buffer and write the children into the other one.
-- ``lane[j]`` (``hdl.learner_lane.Lane``): an ``EvaluatorEHW`` (its own copy of the world-model RAM, state
-  set and trace engine: every model write goes to every lane, so the copies stay identical), the
+- ``lane[j]`` (``hdl.learner_lane.Lane``): an ``EvaluatorEHW`` (its own copy of the world-model RAM
+  and of the failure-rate RAM, state set and trace engine: every model and rate write goes to
+  every lane, so the copies stay identical; its ``fails`` is the child's F), the
   lane's seven xorshift32 generators, a replica of the score RAM (both buffers: the previous
   pass's scores for its tournaments, this pass's being written), the tournament comparator and
   the row mutation datapath.
@@ -32,6 +33,8 @@ Datapath
   running best (one lane finishes per cycle, in the children's order).
 - The result bus (the finishing lane's index and counts) is registered before the score, the
   running best and the score replicas (``ga.hardware_ga.RESULT_LATENCY`` = 1 cycle of drain).
+  The score (``ga.hardware_ga.score``, less the fail count F) is signed (``SCORE_BITS``), and so
+  are the replicas, the tournaments' and the running bests' comparisons.
 
 Timing of a slot (lane time tau; C = max(N + 2, 2T + 54), ``ga.hardware_ga.slot_cycles``)
 ---------------------------------------------------------------------------------------
@@ -55,13 +58,15 @@ passes the buffers swap and the best of the pass becomes the next pass's elite.
 
 Host protocol (all in ``Idle``, ``ready`` high)
 ------------------------------------------------
-World model: the ``model`` port (``hdl.ports.ModelWriteSignature``), ``state_*`` and ``clear``
-of ``EvaluatorEHW``, broadcast to every lane. Population: ``pop_index``, ``pop_row``, ``pop_data``, ``pop_we`` write a row of the
+World model: the ``model`` port (``hdl.ports.ModelWriteSignature``), the failure-rate port
+``rate`` (``hdl.ports.RateWriteSignature``: one code a cycle; CLEAR and reset write
+``PRIOR_CODE`` to every code), ``state_*`` and ``clear`` of ``EvaluatorEHW``, broadcast to every
+lane. Population: ``pop_index``, ``pop_row``, ``pop_data``, ``pop_we`` write a row of the
 current buffer (and mark the population unevaluated: the next pass only evaluates it);
 ``pop_index``, ``pop_row`` read a row (``pop_rdata``, one cycle later). ``seed`` + ``seed_we``
 seed every generator (``ga.hardware_ga.lane_seeds``). ``generations`` + ``start``: run that many
 passes; ``done`` pulses at the end; ``best_*`` hold the best of the last pass (index in the current
-buffer, score, counts) and ``cycles`` the busy cycles of the last run. With ``avoid_en`` (and
+buffer, score, counts and ``best_fails``) and ``cycles`` the busy cycles of the last run. With ``avoid_en`` (and
 ``avoid_state``, ``avoid_motion`` held during the run) ``escape_*`` hold the first child of
 highest score whose array motion in ``avoid_state`` is not ``avoid_motion`` (``escape_found``:
 there is one); each lane ORs the outputs of the rows firing in that state as they stream in.
@@ -69,12 +74,13 @@ there is one); each lane ORs the outputs of the rows firing in that state as the
 
 from __future__ import annotations
 
-from amaranth.hdl import Array, Cat, Const, Module, Mux, Signal
+from amaranth.hdl import Array, Cat, Const, Module, Mux, Signal, signed
 from amaranth.lib import wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
 from ga import hardware_ga as hg
+from ga.fail_rates import FAIL_BITS
 from ga.genome import N_ROWS, ROW_BITS
 from ga.motions import MAX_MOTION_DISTANCE_MM, N_INPUTS, N_OUTPUTS
 from hdl.learner_lane import ROW_INDEX_BITS, TAU_BITS, Lane, broadcast, index_bits, model_ports
@@ -119,14 +125,14 @@ class Learner(wiring.Component):
             "seed": In(32), "seed_we": In(1),
             "generations": In(16), "start": In(1),
             "ready": Out(1), "busy": Out(1), "done": Out(1), "evaluated": Out(1),
-            "best_index": Out(ib), "best_score": Out(hg.SCORE_BITS),
+            "best_index": Out(ib), "best_score": Out(signed(hg.SCORE_BITS)),
             "best_crashes": Out(COUNT_BITS), "best_loops": Out(COUNT_BITS),
-            "best_distance": Out(DISTANCE_BITS),
+            "best_distance": Out(DISTANCE_BITS), "best_fails": Out(FAIL_BITS),
             "cycles": Out(32), "n_states": Out(COUNT_BITS),
             "avoid_en": In(1), "avoid_state": In(N_INPUTS), "avoid_motion": In(N_OUTPUTS),
-            "escape_found": Out(1), "escape_index": Out(ib), "escape_score": Out(hg.SCORE_BITS),
+            "escape_found": Out(1), "escape_index": Out(ib), "escape_score": Out(signed(hg.SCORE_BITS)),
             "escape_crashes": Out(COUNT_BITS), "escape_loops": Out(COUNT_BITS),
-            "escape_distance": Out(DISTANCE_BITS),
+            "escape_distance": Out(DISTANCE_BITS), "escape_fails": Out(FAIL_BITS),
         }
         ports.update(model_ports())
         super().__init__(ports)
@@ -236,6 +242,7 @@ class Learner(wiring.Component):
         d = MAX_MOTION_DISTANCE_MM
         res_valid, res_eligible = Const(0, 1), Const(0, 1)
         res_index, res_c, res_l, res_d = Const(0, ib), Const(0, COUNT_BITS), Const(0, COUNT_BITS), Const(0, DISTANCE_BITS)
+        res_f = Const(0, FAIL_BITS)
         for lane in lanes:
             v = lane.result_valid
             res_valid = res_valid | v
@@ -244,28 +251,31 @@ class Learner(wiring.Component):
             res_c = res_c | Mux(v, lane.crashes, 0)
             res_l = res_l | Mux(v, lane.loops, 0)
             res_d = res_d | Mux(v, lane.distance, 0)
+            res_f = res_f | Mux(v, lane.fails, 0)
         # the result bus, registered (RESULT_LATENCY): one lane finishes per cycle at most
         res = [(res_valid, Signal(name="res_valid_q")), (res_eligible, Signal(name="res_eligible_q")),
                (res_index, Signal(ib, name="res_index_q")), (res_c, Signal(COUNT_BITS, name="res_c_q")),
-               (res_l, Signal(COUNT_BITS, name="res_l_q")), (res_d, Signal(DISTANCE_BITS, name="res_d_q"))]
+               (res_l, Signal(COUNT_BITS, name="res_l_q")), (res_d, Signal(DISTANCE_BITS, name="res_d_q")),
+               (res_f, Signal(FAIL_BITS, name="res_f_q"))]
         m.d.sync += [q.eq(v) for v, q in res]
-        res_valid, res_eligible, res_index, res_c, res_l, res_d = (q for _, q in res)
-        res_score = Signal(hg.SCORE_BITS)
-        m.d.comb += res_score.eq(5 * d * (n - res_c) + 4 * d * (n - res_l) + res_d)
+        res_valid, res_eligible, res_index, res_c, res_l, res_d, res_f = (q for _, q in res)
+        res_score = Signal(signed(hg.SCORE_BITS))  # ga.hardware_ga.score: negative when F outweighs the rest
+        m.d.comb += res_score.eq(5 * d * (n - res_c) + 4 * d * (n - res_l) + res_d - res_f)
         for lane in lanes:
             m.d.comb += [lane.score_addr.eq(Cat(res_index, ~cur_buf)), lane.score_data.eq(res_score),
                          lane.score_we.eq(res_valid)]
         with m.If(res_valid & ((res_index == 0) | (res_score > self.best_score))):
             m.d.sync += [self.best_index.eq(res_index), self.best_score.eq(res_score),
                          self.best_crashes.eq(res_c), self.best_loops.eq(res_l),
-                         self.best_distance.eq(res_d)]
+                         self.best_distance.eq(res_d), self.best_fails.eq(res_f)]
         pass_start = Signal()
         with m.If(pass_start):
             m.d.sync += self.escape_found.eq(0)
         with m.Elif(res_eligible & (~self.escape_found | (res_score > self.escape_score))):
             m.d.sync += [self.escape_found.eq(1), self.escape_index.eq(res_index),
                          self.escape_score.eq(res_score), self.escape_crashes.eq(res_c),
-                         self.escape_loops.eq(res_l), self.escape_distance.eq(res_d)]
+                         self.escape_loops.eq(res_l), self.escape_distance.eq(res_d),
+                         self.escape_fails.eq(res_f)]
 
         # -- pass controller ----------------------------------------------------------------------
         lanes_ready = Const(1, 1)

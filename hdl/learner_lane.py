@@ -5,29 +5,32 @@ datapath are in ``hdl.learner``'s docstring; the algorithm in ``ga.hardware_ga``
 
 from __future__ import annotations
 
-from amaranth.hdl import Cat, Module, Mux, Signal
+from amaranth.hdl import Cat, Module, Mux, Signal, signed
 from amaranth.lib import wiring
 from amaranth.lib.memory import Memory
 from amaranth.lib.wiring import In, Out
 
 from ga import hardware_ga as hg
+from ga.fail_rates import FAIL_BITS
 from ga.genome import N_ROWS, OUTPUT_SHIFT, ROW_BITS
 from ga.motions import N_INPUTS, N_OUTPUTS
 from ga.operators import CONTRADICTION, DONT_CARE, NEGATIVE, POSITIVE
 from hdl.evaluator_ehw import EvaluatorEHW
-from hdl.ports import COUNT_BITS, DISTANCE_BITS, ModelWriteSignature, row_addr_bits
+from hdl.ports import COUNT_BITS, DISTANCE_BITS, ModelWriteSignature, RateWriteSignature, row_addr_bits
 
 TAU_BITS = 10  # C <= max(258, 2T + 54) < 1024 for T <= 480
 ROW_INDEX_BITS = row_addr_bits(N_ROWS)
 # The evaluator's model-side inputs, broadcast from the learner to every lane's evaluator.
 _MODEL_MEMBERS = ("state", "motion", "next", "crash", "valid", "we")  # of ModelWriteSignature
+_RATE_MEMBERS = ("state", "motion", "code", "we")  # of RateWriteSignature
 _STATE_PORTS = ("state_value", "state_we", "clear", "reflex_en")
 
 
 def broadcast(m, source, sink):
-    """Drive ``sink``'s model port and state inputs from ``source``'s (one writer, many copies:
-    ``wiring.connect`` joins one port to one)."""
+    """Drive ``sink``'s model and rate ports and state inputs from ``source``'s (one writer, many
+    copies: ``wiring.connect`` joins one port to one)."""
     m.d.comb += [getattr(sink.model, name).eq(getattr(source.model, name)) for name in _MODEL_MEMBERS]
+    m.d.comb += [getattr(sink.rate, name).eq(getattr(source.rate, name)) for name in _RATE_MEMBERS]
     m.d.comb += [getattr(sink, name).eq(getattr(source, name)) for name in _STATE_PORTS]
 
 
@@ -43,9 +46,10 @@ def index_bits(population: int) -> int:
 
 
 def model_ports():
-    """The evaluator's world-model side: the model write port and the state-set inputs."""
-    return {"model": In(ModelWriteSignature()), "state_value": In(N_INPUTS), "state_we": In(1),
-            "clear": In(1), "reflex_en": In(1)}
+    """The evaluator's world-model side: the model and failure-rate write ports and the state-set
+    inputs."""
+    return {"model": In(ModelWriteSignature()), "rate": In(RateWriteSignature()), "state_value": In(N_INPUTS),
+            "state_we": In(1), "clear": In(1), "reflex_en": In(1)}
 
 
 class Lane(wiring.Component):
@@ -57,7 +61,7 @@ class Lane(wiring.Component):
     replica's write port ``score_*``, the model port and state inputs (to the evaluator), the bank request
     ``rd_en``/``rd_row``/``rd_addr`` and the row ``data_row`` whose data is expected on
     ``rd_data`` this cycle, the bank write ``wr_*``, and the result ``result_valid``,
-    ``result_index``, ``crashes``, ``loops``, ``distance``; ``n_states``, ``ready`` from the
+    ``result_index``, ``crashes``, ``loops``, ``distance``, ``fails``; ``n_states``, ``ready`` from the
     evaluator.
     """
 
@@ -72,14 +76,14 @@ class Lane(wiring.Component):
             "base": In(range(config.slots * config.lanes + 1)), "active": In(1),
             "c_last": In(TAU_BITS), "copy_mode": In(1), "cur_buf": In(1), "best_prev": In(ib),
             "seed": In(32), "seed_we": In(1),
-            "score_addr": In(ib + 1), "score_data": In(hg.SCORE_BITS), "score_we": In(1),
+            "score_addr": In(ib + 1), "score_data": In(signed(hg.SCORE_BITS)), "score_we": In(1),
             "rd_en": Out(1), "rd_row": Out(ROW_INDEX_BITS), "rd_addr": Out(ib + 1),
             "data_en": Out(1), "data_row": Out(ROW_INDEX_BITS), "rd_data": In(ROW_BITS),
             "wr_en": Out(1), "wr_row": Out(ROW_INDEX_BITS), "wr_addr": Out(ib + 1),
             "wr_data": Out(ROW_BITS),
             "result_valid": Out(1), "result_index": Out(ib),
             "crashes": Out(COUNT_BITS), "loops": Out(COUNT_BITS), "distance": Out(DISTANCE_BITS),
-            "n_states": Out(COUNT_BITS), "ready": Out(1),
+            "fails": Out(FAIL_BITS), "n_states": Out(COUNT_BITS), "ready": Out(1),
             "avoid_en": In(1), "avoid_state": In(N_INPUTS), "avoid_motion": In(N_OUTPUTS),
             "result_eligible": Out(1),
         }
@@ -94,7 +98,7 @@ class Lane(wiring.Component):
         broadcast(m, self, ev)
         m.d.comb += [self.n_states.eq(ev.n_states), self.ready.eq(ev.ready)]
 
-        scores = m.submodules.scores = Memory(shape=hg.SCORE_BITS, depth=2 << ib, init=[])
+        scores = m.submodules.scores = Memory(shape=signed(hg.SCORE_BITS), depth=2 << ib, init=[])
         score_wr = scores.write_port()
         score_rd = scores.read_port()
         m.d.comb += [score_wr.addr.eq(self.score_addr), score_wr.data.eq(self.score_data),
@@ -138,7 +142,7 @@ class Lane(wiring.Component):
         compare = Signal()
         m.d.sync += [cont_r.eq(contestant), k_r.eq(tau), compare.eq(sel_step & (tau < 2 * T))]
         par_a, par_b = Signal(ib), Signal(ib)
-        best_a, best_b = Signal(hg.SCORE_BITS), Signal(hg.SCORE_BITS)
+        best_a, best_b = Signal(signed(hg.SCORE_BITS)), Signal(signed(hg.SCORE_BITS))  # signed compares
         cross = Signal()
         got = score_rd.data
         with m.If(compare):
@@ -251,5 +255,6 @@ class Lane(wiring.Component):
             self.result_valid.eq(ev.done & eval_valid), self.result_index.eq(eval_index),
             self.result_eligible.eq(self.avoid_en & (eval_motion != self.avoid_motion)),
             self.crashes.eq(ev.crashes), self.loops.eq(ev.loops), self.distance.eq(ev.distance),
+            self.fails.eq(ev.fails),
         ]
         return m

@@ -10,16 +10,20 @@ Commands (``hdl.link_protocol.DESIGN_COMMANDS[Design.LEARNER]``):
 - IDENTIFY (``p_max`` = the population), READ_COUNTERS (``evaluator_cycles``: the engine's cycles
   of every learn since reset);
 - LOAD_CONTROLLER, SET_REFLEX (both boards), MOTION: the controller board, as on the others;
-- OBSERVE, CLEAR: the world model, broadcast to every lane's copy;
+- OBSERVE, CLEAR: the world model, broadcast to every lane's copy (CLEAR also sets every
+  failure-rate code to ``PRIOR_CODE``);
+- WRITE_RATE (``RATE_REQUEST``): one failure-rate code (``ga.fail_rates``), broadcast to every
+  lane's rate RAM when the engine is ready;
 - LOAD_GENOME (``index`` < P): the rows go into population slot ``index`` as they arrive (the
   next LEARN's first generation only evaluates the population); a frame that fails after
   touching them is re-sent by the host, so the slot ends up whole;
 - SEED (``SEED_REQUEST``): seed every generator (``ga.hardware_ga.lane_seeds``);
 - LEARN (``LEARN_REQUEST`` -> ``LEARN_REPLY``): run ``generations`` passes, with the escape of
   (``avoid_state``, ``avoid_motion``) when ``avoid_en``; the reply (sent at ``done``) gives the
-  download's slot, score, counts, the engine's cycles and whether it is the escape child. A
-  LEARN carrying the ``serial`` of the last executed one is not run again: its reply is re-sent
-  (the protocol's commands are idempotent: a host may resend one whose reply it lost);
+  download's slot, score (signed), counts, fail count, the engine's cycles and whether it is the
+  escape child. A LEARN carrying the ``serial`` of the last executed one is not run again: its
+  reply is re-sent (the protocol's commands are idempotent: a host may resend one whose reply it
+  lost);
 - READ_GENOME (``READ_GENOME_REQUEST``): the 119 genome bytes of slot ``index`` of the current
   population (50 row reads into a 950-bit register, then sent byte by byte).
 """
@@ -84,9 +88,10 @@ class LearnerLinkTop(_LinkTop):
         eng = self._eng
         _controller_states(m, link, _Ports(x=self._ctl.x, motion=self._ctl.motion),
                            commit=self._ctl.commit, reflex=[self._reflex])
-        ev = _Ports(model=eng.model, state_value=eng.state_value, state_we=eng.state_we,
+        ev = _Ports(model=eng.model, rate=eng.rate, state_value=eng.state_value, state_we=eng.state_we,
                     clear=eng.clear, ready=eng.ready)
         self._model_states(m, link, ev)
+        self._rate_states(m, link, ev)
         with m.State(_state(Command.LOAD_GENOME)):
             with m.If(link.args_as(LOAD_GENOME_REQUEST).index >= self.P_MAX):
                 link.answer(m, Status.BAD_ARGUMENT)
@@ -144,7 +149,7 @@ class LearnerLinkTop(_LinkTop):
                 m.d.sync += [reply.cycles.eq(eng.cycles), reply.index.eq(pick("index")),
                              reply.score.eq(pick("score")), reply.crashes.eq(pick("crashes")),
                              reply.loops.eq(pick("loops")), reply.distance.eq(pick("distance")),
-                             reply.escaped.eq(escaped)]
+                             reply.fails.eq(pick("fails")), reply.escaped.eq(escaped)]
                 m.next = "LearnReply"
         with m.State("LearnReply"):
             # READ_COUNTERS' evaluator_cycles: the reply register holds until the next learn's end

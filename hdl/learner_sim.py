@@ -35,6 +35,11 @@ class LearnerSimHost:
         await self.model_host.observe(model, state, motion, next_state, crashed)
         self.cycle = self.model_host.cycle
 
+    async def write_rates(self, changes):
+        """Failure-rate codes (``ga.fail_rates``): one (state, motion, code) a cycle, every lane."""
+        await self.model_host.write_rates(changes)
+        self.cycle = self.model_host.cycle
+
     async def seed(self, seed: int):
         self.ctx.set(self.dut.seed, int(seed))
         self.ctx.set(self.dut.seed_we, 1)
@@ -63,9 +68,9 @@ class LearnerSimHost:
         return rows
 
     async def learn(self, generations: int, reflex: bool = True, avoid=None):
-        """Run ``generations`` passes. Returns (download index, (crashes, loops, distance), score,
-        cycles register, clock edges from the start strobe to done); the download is the escape
-        child when ``avoid`` = (state, motion) is given and one exists, else the best."""
+        """Run ``generations`` passes. Returns (download index, (crashes, loops, distance), fails,
+        score, cycles register, clock edges from the start strobe to done); the download is the
+        escape child when ``avoid`` = (state, motion) is given and one exists, else the best."""
         ctx, dut = self.ctx, self.dut
         ctx.set(dut.reflex_en, int(reflex))
         ctx.set(dut.avoid_en, int(avoid is not None))
@@ -82,16 +87,16 @@ class LearnerSimHost:
         kind = "escape" if avoid is not None and ctx.get(dut.escape_found) else "best"
         get = lambda name: ctx.get(getattr(dut, f"{kind}_{name}"))  # noqa: E731
         counts = (get("crashes"), get("loops"), get("distance"))
-        return get("index"), counts, get("score"), ctx.get(dut.cycles), self.cycle - first
+        return get("index"), counts, get("fails"), get("score"), ctx.get(dut.cycles), self.cycle - first
 
 
 def simulate_learning(config: hg.HardwareGAConfig, seed: int, population, phases,
                       read_population: bool = True, distance_rule: str = "covered"):
     """Run a Learner in Amaranth's simulator: seed it, write ``population``, then for each
-    ``(observations, generations[, avoid])`` of ``phases`` apply the observations (a list of
-    (state, motion, next_state, crashed), host mirror ``ga.world_model.WorldModel``) and learn.
-    Returns one dict per phase: download index, counts, score, cycles, edges, population (if
-    read)."""
+    ``(observations, generations[, avoid[, rates]])`` of ``phases`` apply the observations (a list
+    of (state, motion, next_state, crashed), host mirror ``ga.world_model.WorldModel``), write the
+    rate codes (a list of (state, motion, code)) and learn. Returns one dict per phase: download
+    index, counts, fails, score, cycles, edges, population (if read)."""
     from amaranth.sim import Simulator
 
     from ga.world_model import WorldModel
@@ -105,11 +110,13 @@ def simulate_learning(config: hg.HardwareGAConfig, seed: int, population, phases
         await host.seed(seed)
         await host.write_population(population)
         mirror = WorldModel()
-        for observations, generations, *avoid in phases:
+        for observations, generations, *extra in phases:
+            avoid, rates = (list(extra) + [None, ()])[:2]
             for obs in observations:
                 await host.observe(mirror, *obs)
-            best, counts, score, cycles, edges = await host.learn(generations, avoid=avoid[0] if avoid else None)
-            record = {"best_index": best, "counts": counts, "score": score, "cycles": cycles,
+            await host.write_rates(rates)
+            best, counts, fails, score, cycles, edges = await host.learn(generations, avoid=avoid)
+            record = {"best_index": best, "counts": counts, "fails": fails, "score": score, "cycles": cycles,
                       "edges": edges, "n_states": mirror.n_states}
             if read_population:
                 record["population"] = [await host.read_genome(i) for i in range(config.population)]

@@ -26,8 +26,8 @@ PREFIX = "lrn_"
 # The engine's inputs (the Learner's In ports, as in the generated Verilog).
 LEARNER_INPUTS = ("pop_index", "pop_row", "pop_data", "pop_we", "seed", "seed_we", "generations", "start",
                   "model__state", "model__motion", "model__next", "model__crash", "model__valid",
-                  "model__we", "state_value", "state_we", "clear", "reflex_en", "avoid_en",
-                  "avoid_state", "avoid_motion")
+                  "model__we", "rate__state", "rate__motion", "rate__code", "rate__we", "state_value",
+                  "state_we", "clear", "reflex_en", "avoid_en", "avoid_state", "avoid_motion")
 
 
 def _resolve(obj, path):
@@ -123,6 +123,14 @@ class LearnerHost:
         await self.pins.tick()
         self.set("state_we", 0)
 
+    async def write_rates(self, changes) -> None:
+        """Failure-rate codes (``ga.fail_rates``): one (state, motion, code) a cycle, to every lane."""
+        for state, motion, code in changes:
+            for name, value in (("state", state), ("motion", motion), ("code", code), ("we", 1)):
+                self.set(f"rate__{name}", value)
+            await self.pins.tick()
+        self.set("rate__we", 0)
+
     async def read_genome(self, index: int) -> list[int]:
         rows = []
         for r in range(N_ROWS):  # the edge samples the address; the data is there after it
@@ -134,9 +142,9 @@ class LearnerHost:
 
     async def learn(self, generations: int, reflex: bool = True, avoid=None):
         """Run ``generations`` passes; one wait for ``done`` (no Python per cycle under cocotb).
-        Returns (download index, (crashes, loops, distance), score, the ``cycles`` register,
-        escaped): the download is the escape child when ``avoid`` = (state, motion) is given and
-        one exists (``escaped``: it is not the best), else the best."""
+        Returns (download index, (crashes, loops, distance), fails, score (signed), the ``cycles``
+        register, escaped): the download is the escape child when ``avoid`` = (state, motion) is
+        given and one exists (``escaped``: it is not the best), else the best."""
         self.set("reflex_en", reflex)
         self.set("avoid_en", avoid is not None)
         if avoid is not None:
@@ -151,4 +159,7 @@ class LearnerHost:
         index = self.get(f"{kind}_index")
         counts = tuple(self.get(f"{kind}_{name}") for name in ("crashes", "loops", "distance"))
         escaped = kind == "escape" and index != self.get("best_index")
-        return index, counts, self.get(f"{kind}_score"), self.get("cycles"), escaped
+        score = self.get(f"{kind}_score")
+        if score >= 1 << (hg.SCORE_BITS - 1):  # cocotb's pins read the raw two's complement bits
+            score -= 1 << hg.SCORE_BITS
+        return index, counts, self.get(f"{kind}_fails"), score, self.get("cycles"), escaped

@@ -35,7 +35,7 @@ import enum as py_enum
 import subprocess
 import zlib
 
-from amaranth.hdl import Cat, Module, Mux, Signal
+from amaranth.hdl import Cat, Module, Mux, Signal, signed
 from amaranth.lib import crc, data, enum, wiring
 from amaranth.lib import stream
 from amaranth.lib.wiring import In, Out
@@ -133,8 +133,9 @@ LEARN_REQUEST = data.StructLayout({
 LEARN_REPLY = data.StructLayout({
     "cycles": 32,           # the engine's busy cycles (its register): ga.hardware_ga.learn_cycles - 1
     "index": 16,            # the download's population slot (READ_GENOME)
-    "score": 24,            # its integer score (ga.hardware_ga.score)
+    "score": signed(24),    # its integer score (ga.hardware_ga.score: signed, less the fail count)
     "crashes": 16, "loops": 16, "distance": 16,
+    "fails": 16,            # its failure-rate count F (ga.fail_rates)
     "escaped": 8,           # 1: the download is the escape child, not the best of the last pass
 })
 READ_GENOME_REQUEST = data.StructLayout({"index": 16})
@@ -161,7 +162,7 @@ def layout_bytes(layout) -> int:
 
 
 RESULT_BYTES = layout_bytes(RESULT_REPLY)
-RESULTS_PER_READ = MAX_PAYLOAD // RESULT_BYTES  # 51
+RESULTS_PER_READ = MAX_PAYLOAD // RESULT_BYTES  # 36
 ARG_BYTES = 4  # request bytes kept for the command (OBSERVE's, the largest)
 
 # the payload length each command's request must have
@@ -196,14 +197,14 @@ class Design(py_enum.Enum):
 
 _CONTROLLER_COMMANDS = (Command.LOAD_CONTROLLER, Command.SET_REFLEX, Command.MOTION)
 _EVALUATOR_COMMANDS = (Command.SET_REFLEX, Command.OBSERVE, Command.CLEAR, Command.LOAD_GENOME,
-                       Command.EVALUATE, Command.READ_RESULTS)
+                       Command.EVALUATE, Command.READ_RESULTS, Command.WRITE_RATE)
 DESIGN_COMMANDS = {
     Design.CONTROLLER: (Command.IDENTIFY, Command.READ_COUNTERS) + _CONTROLLER_COMMANDS,
     Design.EVALUATOR: (Command.IDENTIFY, Command.READ_COUNTERS) + _EVALUATOR_COMMANDS,
     Design.SYSTEM: (Command.IDENTIFY, Command.READ_COUNTERS) + _CONTROLLER_COMMANDS
                    + tuple(c for c in _EVALUATOR_COMMANDS if c not in _CONTROLLER_COMMANDS),
     Design.LEARNER: (Command.IDENTIFY, Command.READ_COUNTERS) + _CONTROLLER_COMMANDS
-                    + (Command.OBSERVE, Command.CLEAR, Command.LOAD_GENOME, Command.SEED,
+                    + (Command.OBSERVE, Command.CLEAR, Command.WRITE_RATE, Command.LOAD_GENOME, Command.SEED,
                        Command.LEARN, Command.READ_GENOME),
 }
 

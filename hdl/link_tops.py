@@ -24,8 +24,8 @@ from hdl.evaluator_ehw import EvaluatorEHW
 from hdl.link_protocol import (ARG_BYTES, DEFAULT_TIMEOUT_S, DESIGN_COMMANDS, EVALUATE_REPLY,
                                EVALUATE_REQUEST, GENOME_LAYOUT_VERSION, IDENTIFY_REPLY,
                                COUNTERS_REPLY, LOAD_GENOME_REQUEST, MAX_PAYLOAD, MOTION_REPLY,
-                               MOTION_REQUEST, NAME_BYTES, OBSERVE_REQUEST, READ_RESULTS_REQUEST,
-                               REFLEX_REQUEST, REQUEST_LENGTH, RESULT_BYTES, RESULT_REPLY,
+                               MOTION_REQUEST, NAME_BYTES, OBSERVE_REQUEST, RATE_REQUEST,
+                               READ_RESULTS_REQUEST, REFLEX_REQUEST, REQUEST_LENGTH, RESULT_BYTES, RESULT_REPLY,
                                RESULTS_PER_READ, Command, Design, FrameReceiver, FrameSender,
                                RowAssembler, Status, default_build_id, layout_bytes)
 from hdl.link_counters import COUNTERS_BASE, IDENTIFY_BASE, LinkCounters
@@ -242,6 +242,17 @@ class _LinkTop(wiring.Component):
             with m.If(ev.ready):
                 link.answer(m, Status.OK)
 
+    @staticmethod
+    def _rate_states(m, link, ev):
+        """WRITE_RATE on an evaluator whose ports are ``rate`` (hdl.ports.RateWriteSignature) and
+        ``ready``: the code is written in the first cycle the evaluator is idle."""
+        req = link.args_as(RATE_REQUEST)
+        with m.State(_state(Command.WRITE_RATE)):
+            with m.If(ev.ready):
+                m.d.comb += [ev.rate.state.eq(req.state), ev.rate.motion.eq(req.motion),
+                             ev.rate.code.eq(req.code), ev.rate.we.eq(1)]
+                link.answer(m, Status.OK)
+
 
 def _state(command: Command) -> str:
     """The FSM state that runs ``command``: ``RunLoadGenome`` for LOAD_GENOME."""
@@ -300,8 +311,8 @@ class EvaluatorLinkTop(_LinkTop):
     """The evaluator board (``EvaluatorEHW``) behind the host link: one controller at a time
     (``p_max`` = 1). ``double_buffer=False`` for the iCE40UP5K (SPEC section 8).
 
-    Decodes IDENTIFY, READ_COUNTERS, SET_REFLEX, OBSERVE, CLEAR, LOAD_GENOME (slot 0), EVALUATE
-    (count 1; replies the evaluator's ``cycles``), READ_RESULTS (first 0, count 1).
+    Decodes IDENTIFY, READ_COUNTERS, SET_REFLEX, OBSERVE, CLEAR, WRITE_RATE, LOAD_GENOME (slot 0),
+    EVALUATE (count 1; replies the evaluator's ``cycles``), READ_RESULTS (first 0, count 1).
 
     LOAD_GENOME writes the rows straight into the evaluator as they arrive, so a frame that fails
     after touching them clears ``loaded``, and EVALUATE answers NOT_LOADED until a good
@@ -332,7 +343,8 @@ class EvaluatorLinkTop(_LinkTop):
         # only EVALUATE starts one (its reply follows ``done``): served in place
         cycles, result = Signal(EVALUATE_REPLY), Signal(RESULT_REPLY)
         m.d.comb += [cycles.cycles.eq(ev.cycles), result.result.crashes.eq(ev.crashes),
-                     result.result.loops.eq(ev.loops), result.result.distance.eq(ev.distance)]
+                     result.result.loops.eq(ev.loops), result.result.distance.eq(ev.distance),
+                     result.result.fails.eq(ev.fails)]
         link.serve(m, Command.EVALUATE, cycles)
         link.serve(m, Command.READ_RESULTS, result)
 
@@ -342,6 +354,7 @@ class EvaluatorLinkTop(_LinkTop):
             m.d.sync += self._reflex.eq(link.args_as(REFLEX_REQUEST).enable)
             link.answer(m, Status.OK)
         self._model_states(m, link, ev)
+        self._rate_states(m, link, ev)
         with m.State(_state(Command.LOAD_GENOME)):
             with m.If(link.args_as(LOAD_GENOME_REQUEST).index != 0):
                 link.answer(m, Status.BAD_ARGUMENT)
@@ -401,10 +414,11 @@ class SystemLinkTop(_LinkTop):
             top.pop_data.eq(genome),
             link.counters.cycles.eq(top.pop_cycles),  # holds from pop_done to the next go
         ]
-        # READ_RESULTS: payload byte i is byte i % 5 of result first + i // 5 (tables, not dividers)
+        # READ_RESULTS: payload byte i is byte i % RESULT_BYTES of result first + i // RESULT_BYTES
+        # (tables, not dividers)
         req = link.args_as(READ_RESULTS_REQUEST)
         which = Array(Const(i // RESULT_BYTES, 8) for i in range(MAX_PAYLOAD + 1))
-        part = Array(Const(i % RESULT_BYTES, 3) for i in range(MAX_PAYLOAD + 1))
+        part = Array(Const(i % RESULT_BYTES, range(RESULT_BYTES)) for i in range(MAX_PAYLOAD + 1))
         index = link.snd.index
         result = Signal(8 * RESULT_BYTES)
         m.d.comb += [top.res_addr.eq(req.first + which[index]), result.eq(top.res_data.as_value())]
@@ -414,11 +428,12 @@ class SystemLinkTop(_LinkTop):
     def _states(self, m, link):
         top = self._top
         ev = _Ports(
-            model=top.ev_model, state_value=top.ev_state_value, state_we=top.ev_state_we, clear=top.ev_clear,
-            ready=top.ev_ready & ~top.pop_busy)
+            model=top.ev_model, rate=top.ev_rate, state_value=top.ev_state_value, state_we=top.ev_state_we,
+            clear=top.ev_clear, ready=top.ev_ready & ~top.pop_busy)
         ctl = _Ports(x=top.ctl_x, motion=top.ctl_motion)
         _controller_states(m, link, ctl, commit=top.ctl_commit, reflex=[self._reflex])
         self._model_states(m, link, ev)
+        self._rate_states(m, link, ev)
         with m.State(_state(Command.LOAD_GENOME)):
             index = link.args_as(LOAD_GENOME_REQUEST).index
             with m.If(index >= self.P_MAX):

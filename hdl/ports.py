@@ -15,8 +15,8 @@ used on both sides):
   ``motion``) := ``code`` when ``we``; ``ga.fail_rates``).
 - ``ModelEntry``: one world-model RAM word (9 bits: the port's {next, crash, valid} coded so that
   the 2048 entries fit one 2048 x 9 block RAM); ``RESULT_LAYOUT``: the evaluator's result word
-  (crashes, loops, distance), packed by the system top's results RAM and unpacked by the host
-  with ``unpack_result``.
+  (crashes, loops, distance, fails), packed by the system top's results RAM and unpacked by the
+  host with ``unpack_result``.
 
 Host side, for any simulator: a *pins* object has ``set(name, value)``, ``get(name) -> int`` and
 ``await tick()`` (inputs set before ``tick`` are sampled by the next rising edge; after it returns
@@ -32,7 +32,7 @@ from amaranth.hdl import Mux
 from amaranth.lib import data, wiring
 from amaranth.lib.wiring import Out
 
-from ga.fail_rates import RATE_BITS
+from ga.fail_rates import FAIL_BITS, RATE_BITS
 from ga.genome import N_ROWS, ROW_BITS
 from ga.motions import N_INPUTS, N_OUTPUTS, N_STATES
 
@@ -70,11 +70,13 @@ class ModelEntry(data.Struct):
 
 
 # The evaluator's result word: what one evaluation returns to the host (SPEC section 7: the
-# hardware returns crashes, loops and distance; the host turns them into the fitness).
+# hardware returns crashes, loops and distance; the host turns them into the fitness), and the
+# failure-rate count F (``ga.fail_rates``; the host ignores it without --fail-rates).
 RESULT_LAYOUT = data.StructLayout({
     "crashes": COUNT_BITS,
     "loops": COUNT_BITS,
     "distance": DISTANCE_BITS,
+    "fails": FAIL_BITS,
 })
 
 
@@ -152,15 +154,15 @@ class RateWriteSignature(wiring.Signature):
         return "RateWriteSignature()"
 
 
-def unpack_result(word: int) -> tuple[int, int, int]:
-    """(crashes, loops, distance) from a result word (``RESULT_LAYOUT``)."""
+def unpack_result(word: int) -> tuple[int, int, int, int]:
+    """(crashes, loops, distance, fails) from a result word (``RESULT_LAYOUT``)."""
     result = RESULT_LAYOUT.from_bits(int(word))
-    return int(result.crashes), int(result.loops), int(result.distance)
+    return int(result.crashes), int(result.loops), int(result.distance), int(result.fails)
 
 
-def pack_result(crashes: int, loops: int, distance: int) -> int:
-    """The result word of (crashes, loops, distance): the inverse of ``unpack_result``."""
-    const = RESULT_LAYOUT.const({"crashes": crashes, "loops": loops, "distance": distance})
+def pack_result(crashes: int, loops: int, distance: int, fails: int) -> int:
+    """The result word of (crashes, loops, distance, fails): the inverse of ``unpack_result``."""
+    const = RESULT_LAYOUT.const({"crashes": crashes, "loops": loops, "distance": distance, "fails": fails})
     return const.as_value().value
 
 

@@ -7,14 +7,15 @@ Icarus under cocotb (``--backend cocotb``). It holds
 - ``ctl``: the robot's board, ``hdl.controller_ehw.ControllerEHW``, its ports brought out with a
   ``ctl_`` prefix (row-write port, commit, sensor bits in, registered motion out);
 - ``ev``: the evaluator board, ``hdl.evaluator_ehw.EvaluatorEHW``: its world-model write port,
-  state port, clear and reflex enable brought out with an ``ev_`` prefix; its row-write port and
+  failure-rate write port, state port, clear and reflex enable brought out with an ``ev_`` prefix;
+  its row-write port and
   start/done handshake are driven by
 - the population streamer: a population RAM of ``p_max`` controllers (one 950-bit genome per
   word, written by the host through ``pop_we``/``pop_addr``/``pop_data``), and a results RAM
   (``res_addr`` -> ``res_data``). A ``go`` pulse streams controllers 0..``pop_size``-1 through
   the evaluator: the 50 rows of controller i + 1 are written into the evaluator's shadow while
   controller i is evaluated, ``start`` is raised as soon as the evaluator is ready and the rows
-  are in, and each ``done`` stores (crashes, loops, distance) at the controller's index. After
+  are in, and each ``done`` stores (crashes, loops, distance, fails) at the controller's index. After
   the last one, ``pop_done`` pulses and ``pop_cycles`` holds the cycles from ``go`` to it.
 
 Why the streamer: the host (Python) must stay out of the per-cycle path. Started one controller at
@@ -32,10 +33,10 @@ Timing (``sync`` domain, synchronous reset; inputs sampled at the rising edge en
   A population of P controllers on a model of N states costs about P * max(N + 2, 51) + 50
   cycles (``pop_cycles``).
 - ``res_addr`` in cycle t gives ``res_data`` in cycle t + 1 (synchronous read): a word of
-  ``hdl.ports.RESULT_LAYOUT`` (crashes, loops, distance, as the evaluator's result registers).
-- World-model and state writes (``ev_model``, ``ev_state_*``) and ``ev_clear`` go straight to
-  the evaluator: only while it is ``ev_ready`` and no stream runs. After reset the evaluator sweeps
-  its RAM (2049 cycles): wait for ``ev_ready``.
+  ``hdl.ports.RESULT_LAYOUT`` (crashes, loops, distance, fails, as the evaluator's result registers).
+- World-model, rate and state writes (``ev_model``, ``ev_rate``, ``ev_state_*``) and ``ev_clear``
+  go straight to the evaluator: only while it is ``ev_ready`` and no stream runs. After reset the
+  evaluator sweeps its RAMs (2049 cycles): wait for ``ev_ready``.
 """
 
 from __future__ import annotations
@@ -50,11 +51,11 @@ from ga.motions import DEFAULT_DISTANCE_RULE, N_INPUTS, N_OUTPUTS
 from hdl.and_or_array import _check_positive
 from hdl.controller_ehw import ControllerEHW
 from hdl.evaluator_ehw import COUNT_BITS, EvaluatorEHW
-from hdl.ports import (RESULT_LAYOUT, ModelWriteSignature, RowWriteSignature, unpack_result,  # noqa: F401
-                       write_rows)
+from hdl.ports import (RESULT_LAYOUT, ModelWriteSignature, RateWriteSignature, RowWriteSignature,  # noqa: F401
+                       unpack_result, write_rows)
 
 P_MAX = 512  # controllers per stream: the paper's population of 500 fits in one
-RESULT_BITS = RESULT_LAYOUT.size  # crashes | loops | distance = 34 bits
+RESULT_BITS = RESULT_LAYOUT.size  # crashes | loops | distance | fails = 50 bits
 POP_CYCLE_BITS = 32
 
 
@@ -71,9 +72,10 @@ class SystemTop(wiring.Component):
     ctl_row : In(RowWriteSignature()), ctl_commit : In(1), ctl_x : In(8), ctl_reflex_en : In(1),
     ctl_motion : Out(3)
         The controller board's ports (docs/hdl_controller.md), forwarded to it.
-    ev_model : In(ModelWriteSignature()), ev_state_value : In(8), ev_state_we : In(1),
-    ev_clear : In(1), ev_reflex_en : In(1)
-        The evaluator's world-model port, state port, clear and reflex enable (docs/evaluator.md).
+    ev_model : In(ModelWriteSignature()), ev_rate : In(RateWriteSignature()),
+    ev_state_value : In(8), ev_state_we : In(1), ev_clear : In(1), ev_reflex_en : In(1)
+        The evaluator's world-model port, failure-rate port, state port, clear and reflex enable
+        (docs/evaluator.md).
     ev_ready : Out(1), ev_n_states : Out(9)
         The evaluator is idle; |S|.
     pop_addr : In(9), pop_data : In(950), pop_we : In(1)
@@ -83,7 +85,7 @@ class SystemTop(wiring.Component):
     pop_busy : Out(1), pop_done : Out(1), pop_cycles : Out(32)
         Streaming; one-cycle pulse at the end; cycles from ``go`` to ``pop_done``.
     res_addr : In(9), res_data : Out(RESULT_LAYOUT)
-        Results RAM read port (synchronous): a (crashes, loops, distance) word.
+        Results RAM read port (synchronous): a (crashes, loops, distance, fails) word.
     """
 
     def __init__(self, p_max: int = P_MAX, distance_rule: str = DEFAULT_DISTANCE_RULE):
@@ -97,6 +99,7 @@ class SystemTop(wiring.Component):
             "ctl_reflex_en": In(1),
             "ctl_motion": Out(N_OUTPUTS),
             "ev_model": In(ModelWriteSignature()),
+            "ev_rate": In(RateWriteSignature()),
             "ev_state_value": In(N_INPUTS),
             "ev_state_we": In(1),
             "ev_clear": In(1),
@@ -131,6 +134,7 @@ class SystemTop(wiring.Component):
 
         # -- the evaluator's model side: straight through (the host writes only while idle) -------
         wiring.connect(m, wiring.flipped(self.ev_model), ev.model)
+        wiring.connect(m, wiring.flipped(self.ev_rate), ev.rate)
         m.d.comb += [
             ev.state_value.eq(self.ev_state_value),
             ev.state_we.eq(self.ev_state_we),
@@ -181,6 +185,7 @@ class SystemTop(wiring.Component):
             res_wr.data.crashes.eq(ev.crashes),
             res_wr.data.loops.eq(ev.loops),
             res_wr.data.distance.eq(ev.distance),
+            res_wr.data.fails.eq(ev.fails),
             res_wr.en.eq(ev.done & ~idle),
         ]
 
@@ -224,7 +229,7 @@ class SystemTop(wiring.Component):
 SYSTEM_INPUTS = (
     "ctl_row__addr", "ctl_row__data", "ctl_row__we", "ctl_commit", "ctl_x", "ctl_reflex_en",
     "ev_model__state", "ev_model__motion", "ev_model__next", "ev_model__crash", "ev_model__valid",
-    "ev_model__we", "ev_state_value", "ev_state_we", "ev_clear", "ev_reflex_en",
+    "ev_model__we", "ev_rate__state", "ev_rate__motion", "ev_rate__code", "ev_rate__we", "ev_state_value", "ev_state_we", "ev_clear", "ev_reflex_en",
     "pop_addr", "pop_data", "pop_we", "pop_size", "go", "res_addr",
 )
 
@@ -251,8 +256,8 @@ class SystemHost:
 
     Cycle counters (clock edges): ``controller_cycles`` (50 per download, 1 per motion),
     ``evaluator_cycles`` (``pop_cycles`` of every stream: the evaluator board's own work, row
-    loading included), ``transfer_cycles`` (model writes, 2 per observation; population writes
-    and result reads, 1 per controller each: the host link).
+    loading included), ``transfer_cycles`` (model writes, 2 per observation; rate writes, 1 per
+    code; population writes and result reads, 1 per controller each: the host link).
     """
 
     def __init__(self, pins, p_max: int = P_MAX):
@@ -321,8 +326,23 @@ class SystemHost:
         pins.set("ev_state_we", 0)
         self.transfer_cycles += 2
 
+    async def write_rates(self, changes) -> None:
+        """Failure-rate codes (``ga.fail_rates``): one (state, motion, code) per cycle."""
+        pins = self.pins
+        if not pins.get("ev_ready"):
+            raise RuntimeError("the evaluator board is busy: a rate write would be ignored")
+        for state, motion, code in changes:
+            pins.set("ev_rate__state", int(state))
+            pins.set("ev_rate__motion", int(motion))
+            pins.set("ev_rate__code", int(code))
+            pins.set("ev_rate__we", 1)
+            await pins.tick()
+            self.transfer_cycles += 1
+        pins.set("ev_rate__we", 0)
+
     async def clear(self) -> None:
-        """Empty the evaluator's model (S and every RAM entry: 2049 cycles) and the host's copy."""
+        """Empty the evaluator's model (S and every RAM entry: 2049 cycles; every rate code back to
+        ``PRIOR_CODE``) and the host's copy."""
         from ga.world_model import WorldModel
 
         pins = self.pins
@@ -373,8 +393,8 @@ class SystemHost:
         pins.set("go", 1)
         await pins.tick()
 
-    async def evaluate(self, population) -> tuple[list[tuple[int, int, int]], int]:
-        """(crashes, loops, distance) of each controller of ``population`` (P, 50), and the
+    async def evaluate(self, population) -> tuple[list[tuple[int, int, int, int]], int]:
+        """(crashes, loops, distance, fails) of each controller of ``population`` (P, 50), and the
         evaluator cycles spent: streams of at most ``p_max`` controllers."""
         pins = self.pins
         words = genome_words(population)

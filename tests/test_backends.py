@@ -4,11 +4,12 @@
   shared evaluator cases and controller vectors (tests/cocotb_tb/tb_system.py).
 - The cycle model of a population stream (``cosim.hardware_time.stream_cycles``) against the
   simulated ``pop_cycles`` (Amaranth's simulator).
-- Equivalence: one short on-line run (one obstacle, 3 targets, population 16) on the reference,
-  Amaranth and cocotb backends (cocotb on Icarus and on Verilator), under the default config,
-  gives the identical sequence of motions, downloaded controllers,
-  evaluation results, interactions, generations and counts; the HDL backends report the same
-  clock cycles, equal to the cycle model.
+- Equivalence: one short on-line run (one obstacle, 3 targets, population 16, the failure rates
+  on: ``ga.fail_rates``, codes written to the evaluator at each failure) on the reference,
+  Amaranth and cocotb backends (cocotb on Icarus and on Verilator) gives the identical sequence of
+  motions, downloaded controllers, evaluation results (fails included), interactions,
+  generations and counts; the HDL backends report the same clock cycles, equal to the cycle
+  model. The default config (no failure rates) on the HDL: the distance-rule run at the end.
 """
 
 from __future__ import annotations
@@ -26,10 +27,10 @@ TB_DIR = Path(__file__).resolve().parent / "cocotb_tb"
 
 pytestmark = pytest.mark.filterwarnings("ignore::amaranth.hdl.UnusedElaboratable")
 
-# Short enough for `make test` (a few seconds per backend), long enough for several learning
-# phases with crashes and time-outs, targets and relocations.
-SHORT = OnlineConfig(seed=3, arena="one_obstacle", n_targets=3, population=16, generations_per_phase=2,
-                     max_leg_steps=60)
+# Short enough for `make test` (a few seconds per backend: 12 generations, 6 learning phases),
+# long enough for crash, loop and time-out phases, targets and rate codes written at each failure.
+SHORT = OnlineConfig(seed=4, arena="one_obstacle", n_targets=3, population=16, generations_per_phase=2,
+                     max_leg_steps=60, fail_rates=True)
 # Summary keys that legitimately differ between backends.
 BACKEND_KEYS = {"backend", "wall_time_s", "board_cycles", "hardware"}
 
@@ -45,7 +46,7 @@ def reference_run():
 
     boards = LoggedBoards(*make_boards("reference"))
     run = OnlineRun(SHORT, boards.controller, boards.evaluator, backend="reference").run()
-    return run.summary(), boards.log.to_dict(run.motions)
+    return run.summary(), boards.log.to_dict(run.motions), boards.evaluator.rates.copy()
 
 
 @pytest.fixture(scope="module")
@@ -92,16 +93,20 @@ def cocotb_verilator_run(tmp_path_factory):
 
 
 def test_short_run_exercises_the_loop(reference_run):
-    summary, log = reference_run
+    from ga.fail_rates import PRIOR_CODE
+
+    summary, log, rates = reference_run
     assert summary["targets_reached"] == SHORT.n_targets
-    assert summary["learning_phases"] >= 3
+    assert summary["learning_phases"] >= 3 and set(summary["phase_reasons"]) == {"crash", "loop", "timeout"}
+    assert (rates != PRIOR_CODE).sum() >= 10  # codes written to the evaluator
+    assert all(phase["best_fails"] > 0 for phase in summary["phases"])
     assert len(log["downloads"]) == summary["learning_phases"] + 1  # the random start, then one a phase
     assert len(log["evaluations"]) == summary["generations"]
     assert len(set(log["evaluations"])) > 1
 
 
 def assert_identical(backend: str, run, reference_run) -> None:
-    (summary, log), (ref_summary, ref_log) = run, reference_run
+    (summary, log), (ref_summary, ref_log) = run[:2], reference_run[:2]
     assert summary["backend"] == backend.split("_")[0]
     assert log["motions"] == ref_log["motions"]
     assert log["downloads"] == ref_log["downloads"]
@@ -119,7 +124,7 @@ def test_backend_is_identical_to_reference(backend, reference_run, request):
 def test_verilator_is_identical_and_hdl_backends_count_the_same_cycles(amaranth_run, cocotb_run,
                                                                        cocotb_verilator_run, reference_run):
     assert_identical("cocotb_verilator", cocotb_verilator_run, reference_run)
-    (ama, _), (coco, _), (veri, _), (ref, _) = amaranth_run, cocotb_run, cocotb_verilator_run, reference_run
+    ama, coco, veri, ref = (run[0] for run in (amaranth_run, cocotb_run, cocotb_verilator_run, reference_run))
     assert ama["board_cycles"] == coco["board_cycles"] == veri["board_cycles"]
     assert ama["board_cycles"]["evaluator"] > 0 and ama["board_cycles"]["controller"] > 0
     for hw in (ama["hardware"], coco["hardware"], veri["hardware"]):
@@ -185,7 +190,8 @@ def test_cocotb_system_top_matches_reference(tmp_path):
 
 
 def test_streamer_ignores_writes_and_go_while_busy():
-    """pop_we and go during a stream change nothing: results and cycles as without them."""
+    """pop_we and go during a stream change nothing: results (rate codes written first: fails
+    too) and cycles as without them."""
     import sys
 
     sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -193,7 +199,7 @@ def test_streamer_ignores_writes_and_go_while_busy():
     from cosim.hardware_time import stream_cycles
     from ga.evaluator import evaluate_population
     from hdl.system_top import genome_words, unpack_result
-    from test_evaluator_cases import random_model, specific_rows
+    from test_evaluator_cases import case_rates, random_model, rate_table, specific_rows
 
     system = AmaranthSystem()
     host, pins = system.host, system.pins
@@ -201,6 +207,7 @@ def test_streamer_ignores_writes_and_go_while_busy():
     model = random_model(rng, n_pool=20, n_obs=60, p_crash=0.2)
     pop = specific_rows(rng, 3)
     system.call(host.write_model, model)
+    system.call(host.write_rates, case_rates(model))
 
     async def meddling_stream():
         await host.start_stream(genome_words(pop))
@@ -223,9 +230,9 @@ def test_streamer_ignores_writes_and_go_while_busy():
         return results, cycles
 
     results, cycles = system.call(meddling_stream)
-    expected = evaluate_population(pop, model, True)
-    assert results == [expected.row(i) for i in range(len(pop))]
-    assert cycles == stream_cycles(len(pop), model.n_states)
+    expected = evaluate_population(pop, model, True, rates=rate_table(case_rates(model)))
+    assert results == [(*expected.row(i), int(expected.fails[i])) for i in range(len(pop))]
+    assert expected.fails.min() > 0 and cycles == stream_cycles(len(pop), model.n_states)
 
 
 def test_unknown_simulator_is_refused(monkeypatch):
@@ -245,10 +252,11 @@ def test_first_reading_distance_rule_on_the_amaranth_boards():
     7's "forward") reaches the evaluator EHW: every population is evaluated on the HDL and checked
     against the reference under the same rule (a mismatch raises), and the lifetime is the
     reference's, another one than under the default dist[a]. Its first 6 learning phases (12
-    populations of 16 on the HDL; the whole lifetime, 58 phases, took 62-76 s of the suite)."""
+    populations of 16 on the HDL; the whole lifetime, 58 phases, took 62-76 s of the suite).
+    Without the failure rates (the default): the HDL boards' fails are ignored."""
     import dataclasses
 
-    config = dataclasses.replace(SHORT, seed=1, distance_rule="covered")
+    config = dataclasses.replace(SHORT, seed=1, distance_rule="covered", fail_rates=False)
     hdl = make_run(config, "amaranth").run(stop_after_phases=6)
     assert hdl.evaluator.reference.distance_rule == "covered" and len(hdl.phases) == 6
     reference = make_run(config, "reference").run(stop_after_phases=6)

@@ -2,9 +2,9 @@
 """The learning board behind the host link (hdl/learner_link.py, cosim/link_learning.py): the
 ``ulx3s-learner`` top in Amaranth's simulator, bit by bit through the UART line model
 (tests/link_sim.py), driven by the host's LinkLearningBoard, equals the reference learning board
-(ga.hardware_ga) on a short learn: two phases, the second with the escape; a LEARN resent with
-the same serial is not run again; the controller board beside the engine gives the reference's
-motions."""
+(ga.hardware_ga) on a short learn: two phases with failure-rate codes written before each (the
+download's fail count F in the reply), the second with the escape; a LEARN resent with the same
+serial is not run again; the controller board beside the engine gives the reference's motions."""
 
 from __future__ import annotations
 
@@ -24,13 +24,21 @@ from ga.motions import OBSTACLE_MASK
 from ga.operators import random_population
 from hdl.learner_link import LearnerLinkTop
 from hdl.link_protocol import (CRC_BYTES, HEADER_BYTES, LEARN_REPLY, LEARN_REQUEST, LOAD_GENOME_REQUEST,
-                               OBSERVE_REQUEST, READ_GENOME_REQUEST, Command, genome_bytes, layout_bytes)
+                               OBSERVE_REQUEST, RATE_REQUEST, READ_GENOME_REQUEST, Command, genome_bytes,
+                               layout_bytes)
 from link_sim import AmaranthSerial
 
 CLK, BAUD = 1e6, 250_000  # divisor 4: the fastest the UART runs
 CONFIG = hg.HardwareGAConfig(population=6, tournament=2, lanes=2, literal_rate=0.05, output_rate=0.1,
                              switch_rate=0.2, replace_rate=0.1)
 SEED = 99
+
+
+def _rates(rng, walk, count):
+    """``count`` failure-rate codes (0..255) on pairs of the walk's from-states (one WRITE_RATE
+    frame each)."""
+    states = sorted({o[0] for o in walk})
+    return [(int(rng.choice(states)), int(rng.integers(8)), int(rng.integers(256))) for _ in range(count)]
 
 
 def _walk(rng, count):
@@ -55,21 +63,30 @@ def test_learner_top_over_the_link_equals_the_reference():
     population = random_population(rng, CONFIG.population)
     board = LinkLearningBoard(client, CONFIG, SEED, population, check=True)
     reference = ReferenceLearningBoard(CONFIG, SEED, population)
-    for obs in _walk(rng, 12):
+    walk = _walk(rng, 12)
+    for obs in walk:
         board.observe(*obs)
         reference.observe(*obs)
+    rates = _rates(rng, walk, 6)
+    board.write_rates(rates)
+    reference.write_rates(rates)
     first = board.learn(2)  # check=True: equal to the reference beside it, or LinkMismatch
     want = reference.learn(2)
     assert np.array_equal(first.rows, want.rows) and first.cycles == want.cycles == hg.learn_cycles(
         reference.model.n_states, CONFIG, 2)
-    for obs in _walk(rng, 6):
+    assert first.fails == want.fails > 0
+    walk = _walk(rng, 6)
+    for obs in walk:
         board.observe(*obs)
         reference.observe(*obs)
+    rates = _rates(rng, walk, 3)
+    board.write_rates(rates)
+    reference.write_rates(rates)
     blamed = next(s for s in range(256) if s & OBSTACLE_MASK)
     second = board.learn(1, avoid=(blamed, 3))
     want = reference.learn(1, avoid=(blamed, 3))
-    assert (second.crashes, second.loops, second.distance, second.escaped) == \
-        (want.crashes, want.loops, want.distance, want.escaped)
+    assert (second.crashes, second.loops, second.distance, second.fails, second.escaped) == \
+        (want.crashes, want.loops, want.distance, want.fails, want.escaped)
     assert client.read_counters()["evaluator_cycles"] == first.cycles + second.cycles - 2  # busy cycles
 
     # the same serial again: the last reply, not a third learn (the reference would differ)
@@ -98,9 +115,10 @@ def test_serial_learning_board_errors_name_the_port(monkeypatch):
 
 # -- the learning board in the on-line run: the uart and serial backends (make_run) ---------------
 
-# A short --ga hardware lifetime (2 targets, population 6, 2 lanes, 2 generations a phase).
+# A short --ga hardware lifetime with the failure rates (2 targets, population 6, 2 lanes, 2
+# generations a phase).
 SHORT = OnlineConfig(seed=1, ga="hardware", arena="one_obstacle", n_targets=2, population=6, tournament=2,
-                     lanes=2, generations_per_phase=2)
+                     lanes=2, generations_per_phase=2, fail_rates=True)
 
 
 def _comparable(summary: dict) -> dict:
@@ -118,7 +136,8 @@ def test_uart_learning_backend_short_lifetime_equals_reference(tmp_path):
     """`ehw sim --backend uart --ga hardware`: LearnerLinkTop in Verilator over the simulated line
     gives the reference's summary (interactions, generations, downloads, engine cycles), and only
     the observations, the motions and, per phase, one LEARN, one READ_GENOME and the download's
-    LOAD_CONTROLLER cross the link after the population's one upload."""
+    LOAD_CONTROLLER cross the link after the population's one upload, and the changed rate codes
+    (WRITE_RATE) before the phases that follow a failure."""
     from cosim.uart_backend import run_online_uart
 
     summary = run_online_uart(SHORT, tmp_path)
@@ -137,6 +156,8 @@ def test_uart_learning_backend_short_lifetime_equals_reference(tmp_path):
     assert by["LOAD_GENOME"] == [_frame(layout_bytes(LOAD_GENOME_REQUEST) + genome_bytes()) * SHORT.population,
                                  _frame(0) * SHORT.population]
     assert by["LOAD_CONTROLLER"][0] == _frame(genome_bytes()) * (phases + 2)  # empty, first driver, downloads
+    writes = by["WRITE_RATE"][0] // _frame(RATE_REQUEST)
+    assert writes > 0 and by["WRITE_RATE"] == [_frame(RATE_REQUEST) * writes, _frame(0) * writes]
     assert not {"EVALUATE", "READ_RESULTS"} & set(by)
 
 
@@ -175,7 +196,7 @@ def test_serial_learning_backend_runs_a_lifetime_through_make_run(monkeypatch):
     # seed 8: 16 interactions, then a loop in an obstacle state (an escape learned over the link;
     # with rounds 1-7's blame: round 8's puts this stop on a pair the best already avoids)
     config = OnlineConfig(seed=8, ga="hardware", arena="one_obstacle", population=6, tournament=2,
-                          lanes=2, generations_per_phase=1, max_leg_steps=20, loop_blame="leg")
+                          lanes=2, generations_per_phase=1, max_leg_steps=20, loop_blame="leg", fail_rates=True)
     opened = []
 
     def fake_port(port, baud):

@@ -1,16 +1,18 @@
 """The learning board (cosim.boards.LearningBoard): the reference, Amaranth and cocotb (Icarus,
-Verilator) backends agree on a short --ga hardware lifetime; --resume with --ga hardware; the
-on-line run's --ga hardware option."""
+Verilator) backends agree on a short --ga hardware lifetime with --fail-rates; --resume with --ga
+hardware; the on-line run's --ga hardware option."""
 
 import pytest
 
 from cosim.online import OnlineConfig, make_run
 from cosim.online_cli import main
+from ga.fail_rates import PRIOR_CODE
 
 
-# A short lifetime of --ga hardware (3 targets, 4 learning phases, one escape) on every backend.
+# A short lifetime of --ga hardware with the failure rates (3 targets, 32 learning phases, escapes:
+# the codes written to every lane before each phase after a failure) on every backend.
 SHORT = OnlineConfig(seed=1, ga="hardware", arena="one_obstacle", n_targets=3, population=6, tournament=2,
-                     lanes=2, generations_per_phase=2)
+                     lanes=2, generations_per_phase=2, fail_rates=True)
 
 
 def _comparable(summary: dict) -> dict:
@@ -32,6 +34,7 @@ def test_online_hardware_ga_reference_equals_amaranth(short_runs):
     ref, ama = short_runs["reference"], short_runs["amaranth"]
     assert ref["targets_reached"] == 3 and ref["learning_phases"] >= 3
     assert any(p.get("escaped") for p in ref["phases"]) and all(p["engine_cycles"] > 0 for p in ref["phases"])
+    assert any(p["best_fails"] > 0 for p in ref["phases"])
     assert _comparable(ama) == _comparable(ref)
     assert ref["generations"] == 2 * ref["learning_phases"]
 
@@ -86,7 +89,7 @@ def test_hardware_ga_option_checks(capsys, monkeypatch):
 # -- resume (the engine's state in the checkpoint) ----------------------------------------------------
 
 HW_SMALL = dict(ga="hardware", arena="one_obstacle", n_targets=6, population=40, tournament=5, lanes=3,
-                generations_per_phase=3, max_leg_steps=300, loop_window=60)
+                generations_per_phase=3, max_leg_steps=300, loop_window=60, fail_rates=True)
 
 
 def _figures(run) -> dict:
@@ -98,7 +101,8 @@ def _figures(run) -> dict:
 
 def test_hardware_ga_resume_equals_uninterrupted(tmp_path):
     """A run stopped after 2 phases and resumed from its checkpoint (the reference engine's
-    population, scores, counts and generator states) is the uninterrupted run."""
+    population, scores, counts and generator states; the rate codes rebuilt by replaying the
+    failure marks) is the uninterrupted run."""
     config = OnlineConfig(seed=5, **HW_SMALL)
     whole = make_run(config, out=tmp_path / "whole").run()
     assert len(whole.phases) >= 4, "the test needs a run with several learning phases"
@@ -107,6 +111,7 @@ def test_hardware_ga_resume_equals_uninterrupted(tmp_path):
     resumed = make_run(config, out=tmp_path / "part", resume=True)
     assert resumed.evaluator.state_dict() == part.evaluator.state_dict()
     assert resumed.evaluator.model == part.evaluator.model
+    assert (resumed.evaluator.rates == part.evaluator.rates).all() and (part.evaluator.rates != PRIOR_CODE).any()
     resumed.run()
     assert _figures(resumed) == _figures(whole) and resumed.motions == whole.motions
     assert resumed.evaluator.state_dict() == whole.evaluator.state_dict()
@@ -170,13 +175,15 @@ def test_killed_hardware_ga_run_resumes_to_the_uninterrupted_summary(tmp_path):
 
 def test_amaranth_learning_board_resumes_by_replaying_its_learns(tmp_path):
     """The HDL engine has no port to load generator states and scores: a resumed run on the
-    Amaranth board replays the learns where they happened and checks the engine state it reaches."""
-    config = OnlineConfig(seed=2, ga="hardware", population=6, tournament=2, lanes=2, generations_per_phase=2)
+    Amaranth board replays the learns (and the rate writes before them) where they happened and
+    checks the engine state it reaches."""
+    config = OnlineConfig(seed=2, ga="hardware", population=6, tournament=2, lanes=2, generations_per_phase=2,
+                          fail_rates=True)
     whole = make_run(config).run(stop_after_phases=2)  # the reference (equal to Amaranth: above)
     make_run(config, out=tmp_path).run(stop_after_phases=1)  # a checkpoint holds the engine state
     resumed = make_run(config, "amaranth", out=tmp_path, resume=True)
     resumed.run(stop_after_phases=2)
-    keys = ("reason", "interactions", "best_fitness", "best_distance", "new_motion", "engine_cycles")
+    keys = ("reason", "interactions", "best_fitness", "best_distance", "best_fails", "new_motion", "engine_cycles")
     assert [[p[k] for k in keys] for p in resumed.phases] == [[p[k] for k in keys] for p in whole.phases]
     assert resumed.motions == whole.motions
     assert resumed.evaluator.state_dict()["engine"] == whole.evaluator.state_dict()["engine"]

@@ -5,11 +5,12 @@ cosim/uart_backend.py).
 - Frames: the host's encoder against the gateware's definitions (CRC residue, header layout).
 - Amaranth's simulator, bit by bit through the UART line model (tests/link_sim.py): the
   controller top (iCEBreaker) answers IDENTIFY, loads rows and gives the reference's motions; the
-  single-buffered evaluator top evaluates like the reference; a damaged frame is answered and
-  not executed (the committed controller stays; a touched evaluator answers NOT_LOADED until a
-  good load, and the board class reloads by itself).
-- Verilator (one build): the uart backend's short on-line run equals the reference run, and the
-  fault tests of tests/cocotb_tb/tb_link.py (flipped / dropped / silent) pass.
+  single-buffered evaluator top evaluates like the reference, failure-rate codes (WRITE_RATE) and
+  fails included; a damaged frame is answered and not executed (the committed controller stays;
+  a touched evaluator answers NOT_LOADED until a good load, and the board class reloads by
+  itself), nor is a WRITE_RATE of the wrong length (BAD_LENGTH).
+- Verilator (one build): the uart backend's short on-line run (failure rates on) equals the
+  reference run, and the fault tests of tests/cocotb_tb/tb_link.py (flipped / dropped / silent) pass.
 - The serial backend's errors: no port, a port that cannot be opened, a board of the wrong design.
 """
 
@@ -22,8 +23,8 @@ import numpy as np
 import pytest
 
 from cosim.link_host import (LinkClient, LinkError, encode_frame, genome_payload, pack, unpack)
-from hdl.link_protocol import (CRC_BYTES, HEADER_BYTES, LINK_CRC, REQUEST_LENGTH, SYNC, Command,
-                               FrameHeader, Status, genome_bytes)
+from hdl.link_protocol import (CRC_BYTES, HEADER_BYTES, LINK_CRC, REQUEST_LENGTH, RESULT_BYTES, RESULT_REPLY,
+                               SYNC, Command, FrameHeader, Status, genome_bytes)
 from hdl.link_tops import ControllerLinkTop, EvaluatorLinkTop
 from link_sim import AmaranthSerial, FaultyStream
 
@@ -39,6 +40,11 @@ def test_frame_encoding_matches_the_gateware_definitions():
     assert (header.command, header.status, header.tag, header.length) == (Command.MOTION.value, 0, 7, 1)
     assert LINK_CRC.compute(frame[1:]) == LINK_CRC.residue() == 0  # what the receiver checks
     assert REQUEST_LENGTH[Command.LOAD_GENOME] == 2 + genome_bytes() == 121
+    assert REQUEST_LENGTH[Command.WRITE_RATE] == 3
+    from hdl.ports import pack_result
+
+    word = pack_result(256, 3, 65535, 64000)  # RESULT_REPLY: the result word padded to bytes
+    assert RESULT_BYTES == 7 and unpack(RESULT_REPLY, word.to_bytes(RESULT_BYTES, "little")).result.fails == 64000
     rows = np.random.default_rng(SEED).integers(0, 1 << 19, 50, dtype=np.uint32)
     payload = genome_payload(rows)
     assert len(payload) == 119 and int.from_bytes(payload, "little") & ((1 << 19) - 1) == rows[0]
@@ -147,6 +153,9 @@ def test_damaged_controller_frame_is_never_committed():
 def test_single_buffered_evaluator_top_matches_the_reference():
     from cosim.boards import ReferenceEvaluatorBoard
     from cosim.link_boards import LinkEvaluatorBoard
+    from ga.evaluator import evaluate_population
+    from ga.fail_rates import RATE_ONE, prior_codes
+    from test_evaluator_cases import constant_rows
 
     client, line = _client(EvaluatorLinkTop(CLK, BAUD, double_buffer=False, timeout_s=1e-4), 20_000)
     line.run_cycles(2100)  # the evaluator sweeps its RAM after reset
@@ -158,10 +167,20 @@ def test_single_buffered_evaluator_top_matches_the_reference():
         s, m, n, crash = int(rng.integers(0, 32)), int(rng.integers(0, 8)), int(rng.integers(0, 32)), bool(rng.random() < 0.3)
         board.observe(s, m, n, crash)
         reference.observe(s, m, n, crash)
-    pop = rng.integers(0, 1 << 19, (2, 50), dtype=np.uint32)
+    rates = [(int(s), a, int(rng.integers(0, RATE_ONE + 1))) for s in board.model.states[:6] for a in (0, 5)]
+    board.write_rates(rates)  # WRITE_RATE, one code a frame
+    reference.write_rates(rates)
+    pop = np.vstack([rng.integers(0, 1 << 19, (1, 50), dtype=np.uint32), constant_rows(0)])
     counts = board.evaluate(pop)  # check=True: equal to the reference, or LinkMismatch
     want = reference.evaluate(pop)
     assert np.array_equal(counts.distance, want.distance) and counts.cycles == 2 * (board.model.n_states + 1)
+    assert np.array_equal(counts.fails, want.fails)
+    assert not np.array_equal(counts.fails, evaluate_population(pop, board.model, rates=prior_codes()).fails)
+
+    # WRITE_RATE of the wrong length: BAD_LENGTH, and the code stays (constant_rows(0) counts it)
+    s = max(int(s) for s in board.model.states)
+    line.write(encode_frame(Command.WRITE_RATE, bytes([s, 0, 255, 255]), tag=49))
+    assert unpack(FrameHeader, line.read(7)[1:5]).status == Status.BAD_LENGTH.value
 
     # a LOAD_GENOME frame damaged after its rows went in: BAD_CRC, and EVALUATE refuses to run
     # on the touched rows until a good load
@@ -171,10 +190,10 @@ def test_single_buffered_evaluator_top_matches_the_reference():
     assert unpack(FrameHeader, line.read(7)[1:5]).status == Status.BAD_CRC.value
     with pytest.raises(LinkError, match="NOT_LOADED"):
         client.evaluate(1)
-    last = board.evaluate(pop[:1])  # the board class reloads
-    assert last.crashes[0] == want.crashes[0]
+    last = board.evaluate(pop[1:])  # the board class reloads
+    assert last.fails[0] == want.fails[1]
     before, after = client.read_counters(), client.read_counters()
-    assert before["evaluator_cycles"] == counts.cycles + last.cycles and before["frames_rejected"] == 1
+    assert before["evaluator_cycles"] == counts.cycles + last.cycles and before["frames_rejected"] == 2
     assert after == {**before, "frames_ok": before["frames_ok"] + 1}
 
 
@@ -264,10 +283,10 @@ def test_uart_backend_short_run_equals_reference_and_faults(tmp_path, monkeypatc
     from cosim.uart_backend import TOPLEVEL, prepare_uart_run
     from hdl.uart import max_baud
 
-    # 16 generations, 231 interactions, crash, loop and time-out phases; population 10 on 8 slots:
-    # every evaluation is two chunks
-    config = OnlineConfig(seed=4, arena="one_obstacle", n_targets=3, population=10,
-                          generations_per_phase=2, max_leg_steps=60)
+    # 10 generations, 119 interactions, crash, loop and time-out phases, the failure rates on (rate
+    # codes written at each failure); population 10 on 8 slots: every evaluation is two chunks
+    config = OnlineConfig(seed=1, arena="one_obstacle", n_targets=3, population=10,
+                          generations_per_phase=2, max_leg_steps=60, fail_rates=True)
     source, env = prepare_uart_run(config, tmp_path, baud=max_baud(25e6), p_max=8,
                                    build_name=f"{TOPLEVEL}_test")
     monkeypatch.syspath_prepend(str(TB_DIR))  # cocotb imports tb_link from the launcher's sys.path
@@ -281,6 +300,8 @@ def test_uart_backend_short_run_equals_reference_and_faults(tmp_path, monkeypatc
     assert {k: v for k, v in summary.items() if k not in keys} == {k: v for k, v in reference.items() if k not in keys}
     link = json.loads((tmp_path / "link.json").read_text())["controller"]
     assert link["resends"] == 0 and link["bytes_sent"] > 126 * config.population * summary["generations"]
+    assert link["by_command"]["WRITE_RATE"][0] >= 10 * 10  # frames of 10 bytes
+    assert set(summary["phase_reasons"]) == {"crash", "loop", "timeout"}
 
 
 # -- the serial backend's errors ------------------------------------------------------------------

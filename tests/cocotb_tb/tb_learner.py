@@ -1,10 +1,11 @@
 """cocotb testbench: the generated Verilog of a small learning engine against ga.hardware_ga.
 
-The case (seed, initial population, phases of observations and generations, and the reference's
-expected best, counts, score, cycles and population after each phase) comes as JSON from
-tests/test_learner.py (``EHW_LEARNER_CASE``). The host seeds the generators, writes the
+The case (seed, initial population, phases of observations, rate codes and generations, and the
+reference's expected best, counts, fails, score, cycles and population after each phase) comes as
+JSON from tests/test_learner.py (``EHW_LEARNER_CASE``). The host seeds the generators, writes the
 population, then per phase writes the observed transitions (the SPEC update rule applied by a host
-mirror, ``ga.world_model``), starts the learning and compares everything after done.
+mirror, ``ga.world_model``) and the failure-rate codes, starts the learning and compares
+everything after done (the score is signed).
 
 Timing: inputs change just after a falling edge; the rising edge in the middle of the cycle
 samples them; outputs are read at the next falling edge.
@@ -23,6 +24,7 @@ from ga.world_model import WorldModel
 
 INPUTS = ("pop_index", "pop_row", "pop_data", "pop_we", "seed", "seed_we", "generations", "start",
           "model__state", "model__motion", "model__next", "model__crash", "model__valid", "model__we",
+          "rate__state", "rate__motion", "rate__code", "rate__we",
           "state_value", "state_we", "clear", "reflex_en", "avoid_en", "avoid_state", "avoid_motion")
 
 
@@ -38,6 +40,10 @@ class Testbench:
     def get(self, name: str) -> int:
         value = getattr(self.dut, name).value
         return value.to_unsigned() if hasattr(value, "to_unsigned") else int(value)
+
+    def get_signed(self, name: str) -> int:
+        value = getattr(self.dut, name).value
+        return value.to_signed() if hasattr(value, "to_signed") else value.signed_integer
 
     async def tick(self):
         await FallingEdge(self.dut.clk)
@@ -91,6 +97,8 @@ async def learner_matches_reference(dut):
     for phase, want in zip(case["phases"], case["expected"]):
         for obs in phase["observations"]:
             await tb.observe(mirror, *obs)
+        for state, motion, code in phase["rates"]:
+            await tb.pulse(rate__state=state, rate__motion=motion, rate__code=code, rate__we=1)
         avoid = phase["avoid"]
         dut.avoid_en.value = int(avoid is not None)
         if avoid is not None:
@@ -103,7 +111,8 @@ async def learner_matches_reference(dut):
         kind = "escape" if avoid is not None and tb.get("escape_found") else "best"
         assert tb.get(f"{kind}_index") == want["best_index"]
         counts = [tb.get(f"{kind}_crashes"), tb.get(f"{kind}_loops"), tb.get(f"{kind}_distance")]
-        assert counts == want["counts"] and tb.get(f"{kind}_score") == want["score"]
+        assert counts == want["counts"] and tb.get(f"{kind}_fails") == want["fails"]
+        assert tb.get_signed(f"{kind}_score") == want["score"], (tb.get_signed(f"{kind}_score"), want["score"])
         population = [await tb.read_genome(i) for i in range(len(want["population"]))]
         assert population == want["population"]
     dut._log.info("%d phases agree with the reference", len(case["phases"]))

@@ -2,7 +2,8 @@
 streamer) driven through ``hdl.system_top.SystemHost``, the protocol the cocotb backend uses.
 
 - evaluator: the shared evaluator cases (tests/test_evaluator_cases.py) streamed as one population
-  per world model, results against ``ga.evaluator``; the cycles of a stream against the bound
+  per world model, with their failure-rate codes written after a clear, results (fails included)
+  against ``ga.evaluator``; the cycles of a stream against the bound
   P * max(N + 2, 50) + N + 4;
 - a population larger than the streamer's RAM (split into streams) and a one-controller stream;
 - world-model writes through ``observe`` (update rule on the host, crash entries kept);
@@ -24,14 +25,17 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # tests/, for t
 
 from cosim.cocotb_backend import CocotbSystem  # noqa: E402
 from ga.evaluator import evaluate_population  # noqa: E402
+from ga.fail_rates import prior_codes  # noqa: E402
 from ga.truth_table import truth_tables  # noqa: E402
 from ga.world_model import WorldModel  # noqa: E402
-from test_evaluator_cases import cases, specific_rows  # noqa: E402
+from test_evaluator_cases import case_rates, cases, rate_table, specific_rows  # noqa: E402
 
 
-def expected(pop, model, reflex):
-    result = evaluate_population(pop, model, reflex)
-    return [result.row(i) for i in range(len(pop))]
+def expected(pop, model, reflex, rates=None):
+    """(crashes, loops, distance, fails) of each controller; ``rates``: the board's codes (default:
+    a cleared board's)."""
+    result = evaluate_population(pop, model, reflex, rates=prior_codes() if rates is None else rates)
+    return [(*result.row(i), int(result.fails[i])) for i in range(len(pop))]
 
 
 @cocotb.test()
@@ -42,9 +46,10 @@ async def evaluator_cases(dut):
     for name, model, pop, reflex in cases():
         await host.clear()
         await host.write_model(model)
+        await host.write_rates(case_rates(model))
         host.set_reflex(reflex)
         counts, cycles = await host.evaluate(pop)
-        assert counts == expected(pop, model, reflex), name
+        assert counts == expected(pop, model, reflex, rate_table(case_rates(model))), name
         n = model.n_states
         assert cycles <= len(pop) * max(n + 2, 50) + n + 4, (name, cycles, len(pop), n)
 
