@@ -75,7 +75,8 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
                    help="after a time-out or loop, download the best that avoids the blamed motion")
     p.add_argument("--fail-rates", action=argparse.BooleanOptionalAction, default=d.fail_rates,
                    help="the robot's own failure rate of each (state, motion) as a fourth fitness "
-                        "term (ga.fail_rates; docs/online.md, round 15)")
+                        "term (ga.fail_rates; docs/online.md, round 15; default on; --no-fail-rates: "
+                        "SPEC section 7's three terms)")
     p.add_argument("--loop-blame", choices=LOOP_BLAMES, default=d.loop_blame,
                    help="the (state, motion) a cycle stop is blamed on: cycle = the first pair of "
                         "the cycle that stopped the leg (default), leg = the leg's most frequent "

@@ -63,8 +63,8 @@ class OnlineConfig:
     # that stopped the leg (round 8), or "leg", the leg's most frequent obstacle pair (rounds 1-7)
     loop_blame: str = "cycle"
     # the robot's own failure rates per (state, motion) as a fourth fitness term (ga.fail_rates;
-    # docs/online.md, rounds 14-15); False: SPEC section 7's three terms alone
-    fail_rates: bool = False
+    # docs/online.md, rounds 14-15: the default since round 15); False: SPEC section 7's three terms
+    fail_rates: bool = True
     max_interactions: int = 100_000  # end the lifetime there even short of n_targets (0: no limit)
     # The GA of the learning phases: "host" (ga.evolution on the host, the evaluator board
     # evaluates) or "hardware" (the learning board: ga.hardware_ga / hdl.learner with `lanes`

@@ -72,7 +72,7 @@ def test_online_round6_runs_each_variant_and_tabulates(tmp_path, capsys):
     assert all(r["interactions"] in (120, 121) and 0 < r["lost"] <= r["interactions"] for r in runs)
     from cosim.online import OnlineConfig, make_run
 
-    plain = make_run(OnlineConfig(seed=1, max_interactions=120, loop_blame="leg")).run()  # rounds 1-7's rule
+    plain = make_run(OnlineConfig(seed=1, max_interactions=120, loop_blame="leg", fail_rates=False)).run()  # rounds 1-7's rule
     assert runs[0]["interactions"] == plain.interactions and runs[0]["phases"] == len(plain.phases)
     assert round6.main([round6.VARIANTS[0], "1", "--budget", "120", "--out", str(out)]) == 0  # reused
     assert len(out.read_text().splitlines()) == len(round6.VARIANTS)
@@ -133,7 +133,7 @@ def test_online_round7_runs_each_variant_classes_every_step_and_tabulates(tmp_pa
         assert sum(r["download_trace"].values()) == r["phases"]
     from cosim.online import OnlineConfig, make_run
 
-    plain = make_run(OnlineConfig(seed=1, max_interactions=120, loop_blame="leg")).run()  # rounds 1-7's rule
+    plain = make_run(OnlineConfig(seed=1, max_interactions=120, loop_blame="leg", fail_rates=False)).run()  # rounds 1-7's rule
     assert runs[0]["interactions"] == plain.interactions and runs[0]["phases"] == len(plain.phases)
     capsys.readouterr()
     assert round7.main(["--table", str(out)]) == 0
@@ -175,7 +175,7 @@ def test_online_round8_runs_each_parameter_and_its_cycle_blame_is_the_default(tm
     from cosim.online import OnlineConfig, make_run
 
     for r, rule in ((runs[0], "leg"), (runs[1], "cycle")):
-        plain = make_run(OnlineConfig(seed=1, max_interactions=150, loop_blame=rule)).run()
+        plain = make_run(OnlineConfig(seed=1, max_interactions=150, loop_blame=rule, fail_rates=False)).run()
         assert (r["interactions"], r["targets"], r["phases"]) == (plain.interactions, plain.targets, len(plain.phases))
     capsys.readouterr()
     assert round8.main(["--table", str(out)]) == 0
@@ -203,7 +203,7 @@ def test_online_round9_runs_each_rule_and_its_default_is_the_default_lifetime(tm
     assert all(r["crash_entries"]["crash_entries"] >= r["crash_entries"]["crash_entries_safe_half"] for r in runs)
     from cosim.online import OnlineConfig, make_run
 
-    plain = make_run(OnlineConfig(seed=1, max_interactions=150)).run()
+    plain = make_run(OnlineConfig(seed=1, max_interactions=150, fail_rates=False)).run()
     assert (runs[0]["interactions"], runs[0]["targets"], runs[0]["phases"]) == (
         plain.interactions, plain.targets, len(plain.phases))
     capsys.readouterr()
@@ -374,7 +374,7 @@ def test_online_round12_mirrored_writes_reach_the_board_and_the_host_copy(tmp_pa
     assert round12.mirrored(0b001000, 6, 0b001001, True) == (0b010000, 7, 0b010000, True)
     for variant, params in (("mirror_fill", {}), ("mirror_crash", {}), ("mirror_full", {"states": "known"}),
                             ("mode", {"pool": 1})):
-        config = OnlineConfig(seed=1, max_interactions=150)
+        config = OnlineConfig(seed=1, max_interactions=150, fail_rates=False)
         base = make_run(config)
         round12.Round12.variant, round12.Round12.params = variant, {**round12.DEFAULT_PARAMS, **params}
         run = round12.Round12(config, base.controller, base.evaluator)
@@ -427,7 +427,7 @@ def test_online_round14_failure_marks_the_rates_and_the_bandit_escape(tmp_path, 
     from cosim.online import OnlineConfig, make_run
 
     r14 = _script("online_round14")
-    config = OnlineConfig(seed=1, max_interactions=150)
+    config = OnlineConfig(seed=1, max_interactions=150, fail_rates=False)
     base = make_run(config)
     r14.Round14.variant, r14.Round14.params = "failrate", {**r14.DEFAULT_PARAMS, "horizon": 2}
     run = r14.Round14(config, base.controller, base.evaluator)

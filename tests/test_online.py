@@ -60,7 +60,7 @@ def test_other_seed_gives_another_lifetime():
 
 @pytest.mark.parametrize("options", [{}, {"loop_window": 15, "loop_reentries": 0, "loop_repeats": 6},
                                      {"loop_window": 15, "distance_rule": "covered", "loop_cycles": 0},
-                                     {"fail_rates": True}])
+                                     {"fail_rates": False}])
 def test_resume_equals_uninterrupted(tmp_path, options):
     config = OnlineConfig(seed=5, **{**SMALL, **options})
     whole = make_run(config, out=tmp_path / "whole").run()
@@ -129,7 +129,7 @@ class _InterfaceOnly:
 def test_loop_uses_only_the_board_interface():
     log: list[str] = []
     controller = _InterfaceOnly(ReferenceControllerBoard(), ("load", "set_reflex", "motion"), log)
-    evaluator = _InterfaceOnly(ReferenceEvaluatorBoard(), ("observe", "evaluate"), log)
+    evaluator = _InterfaceOnly(ReferenceEvaluatorBoard(), ("observe", "write_rates", "evaluate"), log)
     config = OnlineConfig(seed=3, **SMALL)
     run = OnlineRun(config, controller, evaluator).run()
     assert _figures(run) | {"backend": None} == _figures(make_run(config).run()) | {"backend": None}
