@@ -458,3 +458,29 @@ def test_online_round14_failure_marks_the_rates_and_the_bandit_escape(tmp_path, 
     capsys.readouterr()
     assert r14.main(["--table", str(out)]) == 0
     assert "| failrate | 1-1 (1) |" in capsys.readouterr().out
+
+
+def test_online_round15_default_is_the_lifetime_and_rates_change_the_marks(tmp_path, capsys):
+    """Round 15: ``default`` is the main code's lifetime (failure rates on); ``rates`` with another
+    prior writes other codes, and ``w`` scales the fail counts the host fitness sees."""
+    from cosim.online import OnlineConfig, make_run
+
+    r15 = _script("online_round15")
+    out = tmp_path / "r15.jsonl"
+    assert r15.main(["default", "1", "--budget", "150", "--out", str(out)]) == 0
+    assert r15.main(["rates", "1", "--budget", "150", "--param", "w=2", "--param", "prior_code=12",
+                     "--out", str(out)]) == 0
+    runs = [json.loads(line) for line in out.read_text().splitlines()]
+    plain = make_run(OnlineConfig(seed=1, max_interactions=150)).run()
+    assert (runs[0]["interactions"], runs[0]["phases"]) == (plain.interactions, len(plain.phases))
+    assert runs[1]["params"] == {"w": 2, "prior_code": 12}
+    marks = r15.Marks(horizon=8, prior_code=12)
+    assert marks.codes()[0, 0] == 12 and marks.changes()[0] == (0, 0, 12)
+    board = make_run(OnlineConfig(seed=1)).evaluator
+    board.rates[:] = 200
+    pop = make_run(OnlineConfig(seed=1)).ga.ask()[:5]
+    board.observe(65, 0, 66, False)
+    assert (r15.Weighted(board, 2.0).evaluate(pop).fails == 2 * board.evaluate(pop).fails).all()
+    capsys.readouterr()
+    assert r15.main(["--table", str(out)]) == 0
+    assert "| rates prior_code=12 w=2 | 1-1 (1) |" in capsys.readouterr().out
