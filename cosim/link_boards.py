@@ -104,6 +104,14 @@ class LinkModelBoard:
         if self.reference is not None:
             self.reference.observe(state, motion, next_state, crashed)
 
+    def write_rates(self, changes) -> None:
+        """One WRITE_RATE frame a code (``ga.fail_rates``; a learner top: every lane's rate RAM)."""
+        changes = [tuple(map(int, change)) for change in changes]
+        for state, motion, code in changes:
+            self.client.write_rate(state, motion, code)
+        if self.reference is not None:
+            self.reference.write_rates(changes)
+
 
 class LinkEvaluatorBoard(LinkModelBoard):
     """EvaluatorBoard over a ``LinkClient`` (an evaluator or system board with ``p_max`` slots)."""
@@ -122,13 +130,6 @@ class LinkEvaluatorBoard(LinkModelBoard):
         self.reference = ReferenceEvaluatorBoard(reflex=reflex, distance_rule=distance_rule) if check else None
         self.client.set_reflex(reflex)
         self.client.clear()  # every rate code at PRIOR_CODE too, as the reference's
-
-    def write_rates(self, changes) -> None:
-        changes = list(changes)
-        for state, motion, code in changes:
-            self.client.write_rate(state, motion, code)
-        if self.reference is not None:
-            self.reference.write_rates(changes)
 
     def _chunk(self, rows) -> tuple[list, int]:
         for attempt in range(self.retries + 1):

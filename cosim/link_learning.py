@@ -69,14 +69,6 @@ class LinkLearningBoard(LinkModelBoard):
 
     state_dict = checked_state_dict  # the reference's engine state (no load_state: resume replays)
 
-    def write_rates(self, changes) -> None:
-        """One WRITE_RATE frame a code (every lane's rate RAM)."""
-        changes = [tuple(map(int, change)) for change in changes]
-        for state, motion, code in changes:
-            self.client.write_rate(state, motion, code)
-        if self.reference is not None:
-            self.reference.write_rates(changes)
-
     def read_genome(self, index: int) -> np.ndarray:
         from ga.genome import rows_from_int
 

@@ -9,9 +9,9 @@ from cosim.online_cli import main
 from ga.fail_rates import PRIOR_CODE
 
 
-# A short lifetime of --ga hardware with the failure rates (3 targets, 32 learning phases, escapes:
+# A short lifetime of --ga hardware with the failure rates (3 targets, 6 learning phases, escapes:
 # the codes written to every lane before each phase after a failure) on every backend.
-SHORT = OnlineConfig(seed=1, ga="hardware", arena="one_obstacle", n_targets=3, population=6, tournament=2,
+SHORT = OnlineConfig(seed=35, ga="hardware", arena="one_obstacle", n_targets=3, population=6, tournament=2,
                      lanes=2, generations_per_phase=2, fail_rates=True)
 
 
