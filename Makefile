@@ -90,12 +90,15 @@ hdl-tools:
 	  fi; \
 	fi
 
+# --dist worksteal: a worker that runs out of tests takes pending ones from the other, so the few
+# minute-long HDL lifetimes (tests/test_learner_link.py, test_learning_board.py) do not end the run
+# on one core while the other idles.
 test: $(STAMP) hdl-tools
-	$(PY) -m pytest -n $(JOBS) $(ARGS)
+	$(PY) -m pytest -n $(JOBS) --dist worksteal $(ARGS)
 
 # The inner loop: every test but those that build Verilog in a simulator (markers in pyproject.toml).
 test-fast: $(STAMP)
-	$(PY) -m pytest -n $(JOBS) -m "not cocotb and not verilator" $(ARGS)
+	$(PY) -m pytest -n $(JOBS) --dist worksteal -m "not cocotb and not verilator" $(ARGS)
 
 sim: $(STAMP) hdl-tools
 	EHW_PORT=$(PORT) EHW_PORT2=$(PORT2) EHW_BAUD=$(BAUD) $(EHW) sim --backend $(BACKEND) --seed $(SEED) $(if $(SIM),--simulator $(SIM)) \
