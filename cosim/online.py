@@ -17,9 +17,9 @@ A lifetime alternates two phases, in sequence as in the paper:
   evaluated on the evaluator board and scored with the normative fitness
   (``ga.evaluator.fitness``), with ``fail_rates`` less the robot's own failure rates of the
   controller's motions (``ga.fail_rates``: the host marks the pairs before each failure and
-  writes the changed rate codes to the board before the phase); the controller chosen by ``cosim.download`` (the best, or after a
-  time-out or loop the best that escapes the blamed motion: for a cycle stop a pair of the cycle,
-  ``loop_blame``) is loaded with ``controller.load``.
+  writes the changed rate codes to the board before the phase); the controller chosen by
+  ``cosim.download`` (the best, or after a time-out or loop the best that escapes the blamed
+  motion: for a cycle stop a pair of the cycle, ``loop_blame``) is loaded with ``controller.load``.
 - At the very start the model is empty and a random individual of the initial population drives.
 - Stop at ``n_targets`` targets (64; more with ``--continue-past-64``) or ``max_interactions``.
 
@@ -325,7 +325,7 @@ class OnlineRun:
         # generators and scores) gets it back by replaying the learns where they happened.
         replay = {p["interactions"]: p for p in d["phases"]} if hardware and not hasattr(
             self.evaluator, "load_state") else {}
-        failures = {p["interactions"] for p in d["phases"] if p["reason"] in FAILURES}  # the failure marks, where they were made
+        failures = {p["interactions"] for p in d["phases"] if p["reason"] in FAILURES}  # marks, rate writes
         for motion in bytes.fromhex(d["motions"]):
             self.step(motion, record=False)
             if self.interactions in failures:

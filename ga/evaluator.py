@@ -144,18 +144,17 @@ def evaluate_tables(tables, model: WorldModel, distance_rule: str = DEFAULT_DIST
     """(crashes, loops, distance) for truth tables (P, 256) (or (256,)): see the module docstring.
     ``distance_rule``: dist[a], ``ga.motions.DISTANCE_RULES`` ("forward" is the SPEC). ``rates``:
     the failure-rate codes (256, 8) of ``ga.fail_rates``, for ``fails``; None: fails are 0."""
-    result = _trace_tables(tables, model, distance_rule)
-    if rates is None:
-        return result
-    return EvalResult(result.crashes, result.loops, result.distance,
-                      fail_counts(tables if np.ndim(tables) == 2 else np.asarray(tables)[None], model.states, rates))
-
-
-def _trace_tables(tables, model: WorldModel, distance_rule: str) -> EvalResult:
-    dist = motion_distances(distance_rule)
     tables = np.asarray(tables)
     if tables.ndim == 1:
         tables = tables[None]
+    result = _trace_tables(tables, model, distance_rule)
+    if rates is None:
+        return result
+    return EvalResult(result.crashes, result.loops, result.distance, fail_counts(tables, model.states, rates))
+
+
+def _trace_tables(tables: np.ndarray, model: WorldModel, distance_rule: str) -> EvalResult:
+    dist = motion_distances(distance_rule)
     if tables.ndim != 2 or tables.shape[1] != N_STATES:
         raise ValueError(f"truth tables must have shape (P, {N_STATES}), got {tables.shape!r}")
     pop = tables.shape[0]

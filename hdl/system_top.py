@@ -8,8 +8,7 @@ Icarus under cocotb (``--backend cocotb``). It holds
   ``ctl_`` prefix (row-write port, commit, sensor bits in, registered motion out);
 - ``ev``: the evaluator board, ``hdl.evaluator_ehw.EvaluatorEHW``: its world-model write port,
   failure-rate write port, state port, clear and reflex enable brought out with an ``ev_`` prefix;
-  its row-write port and
-  start/done handshake are driven by
+  its row-write port and start/done handshake are driven by
 - the population streamer: a population RAM of ``p_max`` controllers (one 950-bit genome per
   word, written by the host through ``pop_we``/``pop_addr``/``pop_data``), and a results RAM
   (``res_addr`` -> ``res_data``). A ``go`` pulse streams controllers 0..``pop_size``-1 through
