@@ -92,7 +92,7 @@ class OnlineRun:
         self.detectors = config.detectors()
         self.timeout = self.detectors[0]
         self.track = Track(maxlen=max(config.loop_window, 64))
-        self.marks = FailureMarks() if config.fail_rates else None  # rebuilt by replay on resume
+        self.marks = FailureMarks(mirror=config.rate_mirror) if config.fail_rates else None  # rebuilt on resume
         # lifetime counters (rebuilt by replay on resume)
         self.motions: list[int] = []  # every motion executed, in order (the replay log)
         self.state_log: list[int] = []  # the state observed after each motion

@@ -77,6 +77,9 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
                    help="the robot's own failure rate of each (state, motion) as a fourth fitness "
                         "term (ga.fail_rates; docs/online.md, round 15; default on; --no-fail-rates: "
                         "SPEC section 7's three terms)")
+    p.add_argument("--rate-mirror", action=argparse.BooleanOptionalAction, default=d.rate_mirror,
+                   help="with --fail-rates, each pair's rate code pools its counts with its left-right "
+                        "mirror image's (docs/online.md, round 16; default on; --no-rate-mirror: round 15's codes)")
     p.add_argument("--loop-blame", choices=LOOP_BLAMES, default=d.loop_blame,
                    help="the (state, motion) a cycle stop is blamed on: cycle = the first pair of "
                         "the cycle that stopped the leg (default), leg = the leg's most frequent "
@@ -102,7 +105,8 @@ def config_from_args(args) -> OnlineConfig:
         max_leg_steps=args.max_leg_steps, loop_window=args.loop_window,
         loop_reentries=args.loop_reentries, loop_repeats=args.loop_repeats,
         loop_radius_mm=args.loop_radius_mm, loop_cycles=args.loop_cycles, distance_rule=args.distance,
-        escape=args.escape, fail_rates=args.fail_rates, loop_blame=args.loop_blame, max_interactions=args.max_interactions,
+        escape=args.escape, fail_rates=args.fail_rates, rate_mirror=args.rate_mirror,
+        loop_blame=args.loop_blame, max_interactions=args.max_interactions,
         blind_bit=args.blind_bit, blind_after_target=args.blind_after_target,
         ga=args.ga, lanes=args.lanes,
     )

@@ -65,6 +65,9 @@ class OnlineConfig:
     # the robot's own failure rates per (state, motion) as a fourth fitness term (ga.fail_rates;
     # docs/online.md, rounds 14-15: the default since round 15); False: SPEC section 7's three terms
     fail_rates: bool = True
+    # the rate codes pool each pair's counts with its left-right mirror image's (ga.fail_rates;
+    # docs/online.md, round 16); False: each pair's own counts (round 15)
+    rate_mirror: bool = True
     max_interactions: int = 100_000  # end the lifetime there even short of n_targets (0: no limit)
     # The GA of the learning phases: "host" (ga.evolution on the host, the evaluator board
     # evaluates) or "hardware" (the learning board: ga.hardware_ga / hdl.learner with `lanes`
@@ -97,7 +100,7 @@ class OnlineConfig:
         check(isinstance(value, (int, float)) and math.isfinite(value) and value >= 0, "loop_radius_mm",
               "a finite distance >= 0")
         check(self.distance_rule in DISTANCE_RULES, "distance_rule", f"one of {', '.join(DISTANCE_RULES)}")
-        for field in ("noise", "reflex", "escape", "fail_rates"):
+        for field in ("noise", "reflex", "escape", "fail_rates", "rate_mirror"):
             check(isinstance(getattr(self, field), bool), field, "True or False")
         check(isinstance(self.arena, str) and bool(self.arena), "arena", "an arena name or .json path")
         check(self.ga in ("host", "hardware"), "ga", "host or hardware")

@@ -3,14 +3,15 @@ that they are the default (``ga.fail_rates``, ``OnlineConfig.fail_rates``).
 
     python experiments/online_round15.py VARIANT SEEDS [--budget 20000] [--set key=value ...]
                                          [--param key=value ...]
-    python experiments/online_round15.py default 1-16                      # = ehw sim's lifetime
+    python experiments/online_round15.py default 1-16                      # = ehw sim --no-rate-mirror
     python experiments/online_round15.py rates 1-16 --param w=2            # F weighs twice
     python experiments/online_round15.py rates 1-16 --param horizon=12 --param prior=12
     python experiments/online_round15.py --table build/experiments/round15.jsonl
 
 A lifetime is round 14's (``experiments.online_round14.Round14``: its ``thrash`` and ``downloads``
 instruments) on the main code's defaults, failure rates on (``--set fail_rates=false`` for SPEC
-section 7's fitness; rounds 8-14's scripts keep them off). Variant ``rates``, host side only:
+section 7's fitness; rounds 8-14's scripts keep them off; round 16's mirror pooling is off here,
+``OnlineConfig.rate_mirror``). Variant ``rates``, host side only:
 
 - ``w``: the host fitness takes ``w`` x F (``w`` = 2: a pair that always fails weighs two crashes;
   on the learning engine that would be a shift of F);

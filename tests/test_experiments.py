@@ -471,7 +471,7 @@ def test_online_round15_default_is_the_lifetime_and_rates_change_the_marks(tmp_p
     assert r15.main(["rates", "1", "--budget", "150", "--param", "w=2", "--param", "prior_code=12",
                      "--out", str(out)]) == 0
     runs = [json.loads(line) for line in out.read_text().splitlines()]
-    plain = make_run(OnlineConfig(seed=1, max_interactions=150)).run()
+    plain = make_run(OnlineConfig(seed=1, max_interactions=150, rate_mirror=False)).run()  # round 15's codes
     assert (runs[0]["interactions"], runs[0]["phases"]) == (plain.interactions, len(plain.phases))
     assert runs[1]["params"] == {"w": 2, "prior_code": 12}
     marks = r15.Marks(horizon=8, prior_code=12)
@@ -484,3 +484,38 @@ def test_online_round15_default_is_the_lifetime_and_rates_change_the_marks(tmp_p
     capsys.readouterr()
     assert r15.main(["--table", str(out)]) == 0
     assert "| rates prior_code=12 w=2 | 1-1 (1) |" in capsys.readouterr().out
+
+
+def test_online_round16_mirror_marks_are_the_main_code_and_the_other_marks_differ(tmp_path, capsys):
+    """Round 16: ``default`` is round 15's lifetime (own counts); ``marks pool_mirror=1`` is the main
+    code's default (``rate_mirror``), phase for phase; decay and the failure kinds' weights change
+    the codes; ``w_dist`` scales the distance counts the host fitness sees."""
+    from cosim.online import OnlineConfig, make_run
+
+    r16 = _script("online_round16")
+    out = tmp_path / "r16.jsonl"
+    assert r16.main(["default", "1", "--budget", "300", "--out", str(out)]) == 0
+    assert r16.main(["marks", "1", "--budget", "300", "--param", "pool_mirror=1", "--out", str(out)]) == 0
+    runs = [json.loads(line) for line in out.read_text().splitlines()]
+    own = make_run(OnlineConfig(seed=1, max_interactions=300, rate_mirror=False)).run()
+    pooled = make_run(OnlineConfig(seed=1, max_interactions=300)).run()
+    assert (runs[0]["interactions"], runs[0]["phases"]) == (own.interactions, len(own.phases))
+    key = ("interactions", "targets", "phases")
+    assert [runs[1][k] for k in key] == [pooled.interactions, pooled.targets, len(pooled.phases)]
+    assert [p["state"] for p in own.phases] != [p["state"] for p in pooled.phases]
+    marks = r16.Marks(horizon=8, decay=0.5, weights={"crash": 1.0, "loop": 0.25, "timeout": 1.0})
+    marks.executed_pair(65, 0, reached=False)
+    marks.reason = "loop"
+    marks.failure()  # the counts halve, then the loop marks a quarter
+    assert marks.failed[65, 0] == 0.25 and marks.codes()[65, 0] == round((250 * 0.25 + 25) / 1.5)
+    marks.executed_pair(65, 0, reached=False)
+    marks.reason = "crash"
+    marks.failure()  # the old counts halve first
+    assert marks.failed[65, 0] == 1.125 and marks.executed[65, 0] == 0.75
+    board = make_run(OnlineConfig(seed=1)).evaluator
+    board.observe(65, 0, 66, False)
+    pop = make_run(OnlineConfig(seed=1)).ga.ask()[:5]
+    assert (r16.Scaled(board, 0.5).evaluate(pop).distance == 0.5 * board.evaluate(pop).distance).all()
+    capsys.readouterr()
+    assert r16.main(["--table", str(out)]) == 0
+    assert "| marks pool_mirror=1 | 1-1 (1) |" in capsys.readouterr().out

@@ -7,10 +7,11 @@ import pytest
 
 from cosim.online import OnlineConfig, make_run
 from ga.evaluator import EvalResult, evaluate_population, fitness
-from ga.fail_rates import (HORIZON, PRIOR_CODE, RATE_ONE, W_FAIL, FailureMarks, fail_counts, prior_codes,
-                           rate_codes)
+from ga.fail_rates import (HORIZON, PRIOR_CODE, RATE_ONE, W_FAIL, FailureMarks, fail_counts, mirror_pooled,
+                           prior_codes, rate_codes)
 from ga.hardware_ga import score
-from ga.motions import MAX_MOTION_DISTANCE_MM, N_MOTIONS, N_STATES, OBSTACLE_MASK
+from ga.motions import (MAX_MOTION_DISTANCE_MM, MIRROR_MOTION, MIRROR_STATE, N_MOTIONS, N_STATES, OBSTACLE_MASK,
+                        Motion)
 from ga.operators import random_population
 from ga.truth_table import truth_tables
 from ga.world_model import WorldModel
@@ -111,6 +112,34 @@ def test_changes_are_what_the_board_does_not_hold():
     assert marks.changes() == [(65, 3, (2 * (RATE_ONE + PRIOR_CODE) + 3) // 6)]
 
 
+def test_mirror_pooling_adds_the_mirror_pairs_counts():
+    s = 0b000010 | (1 << 6)  # front-right obstacle, target sector 1
+    m = int(MIRROR_STATE[s])
+    assert m != s
+    counts = np.zeros((N_STATES, N_MOTIONS), dtype=np.int64)
+    counts[s, Motion.TURN_LEFT] = 3
+    counts[m, Motion.TURN_RIGHT] = 4
+    counts[0, Motion.FORWARD] = 5  # a symmetric pair: its own counts twice
+    pooled = mirror_pooled(counts)
+    assert pooled[s, Motion.TURN_LEFT] == pooled[m, Motion.TURN_RIGHT] == 7
+    assert pooled[0, Motion.FORWARD] == 10 and pooled.sum() == 2 * counts.sum()
+    assert MIRROR_MOTION[Motion.TURN_LEFT] == Motion.TURN_RIGHT
+
+
+def test_mirror_marks_warn_the_mirror_pair():
+    s = 0b000010 | (1 << 6)
+    m, a = int(MIRROR_STATE[s]), int(Motion.FORWARD_LEFT)
+    plain, pooled = FailureMarks(), FailureMarks(mirror=True)
+    for marks in (plain, pooled):
+        marks.executed_pair(s, a, reached=False)
+        marks.failure()
+    assert plain.changes() == [(s, a, 138)]
+    code = (2 * (RATE_ONE + PRIOR_CODE) + 2) // 4  # (1 + 0) failed of (1 + 0) executed, pooled
+    assert sorted(pooled.changes()) == sorted([(s, a, code), (m, int(MIRROR_MOTION[a]), code)])
+    codes = pooled.codes()
+    assert (codes == codes[np.ix_(MIRROR_STATE, MIRROR_MOTION)]).all()
+
+
 SMALL = dict(arena="one_obstacle", n_targets=4, population=40, tournament=5, generations_per_phase=3,
              max_leg_steps=300, loop_window=60)
 
@@ -120,5 +149,8 @@ def test_lifetime_writes_the_marks_codes_to_the_board():
     assert run.marks.failed.sum() > 0
     assert (run.evaluator.rates == run.marks.written).all()  # as of the last learning phase
     assert any(p["best_fails"] > 0 for p in run.phases)
+    assert run.marks.mirror and (run.marks.written == run.marks.written[np.ix_(MIRROR_STATE, MIRROR_MOTION)]).all()
     plain = make_run(OnlineConfig(seed=5, fail_rates=False, **SMALL)).run()
     assert plain.marks is None and all(p["best_fails"] == 0 for p in plain.phases)
+    own = make_run(OnlineConfig(seed=5, rate_mirror=False, **SMALL)).run()
+    assert not own.marks.mirror and (own.evaluator.rates == own.marks.written).all()
