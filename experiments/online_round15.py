@@ -55,17 +55,18 @@ class Marks(FailureMarks):
 
 
 class Weighted:
-    """An evaluator board whose fail counts are multiplied by ``w`` (the host fitness's weight)."""
+    """An evaluator board whose ``field`` counts (fails, or another of ``EvalResult``'s) are
+    multiplied by ``w`` (the host fitness's weight)."""
 
-    def __init__(self, board, w: float):
-        self._board, self._w = board, w
+    def __init__(self, board, w: float, field: str = "fails"):
+        self._board, self._w, self._field = board, w, field
 
     def __getattr__(self, name):
         return getattr(self._board, name)
 
     def evaluate(self, population):
         counts = self._board.evaluate(population)
-        return dataclasses.replace(counts, fails=np.asarray(counts.fails) * self._w)
+        return dataclasses.replace(counts, **{self._field: np.asarray(getattr(counts, self._field)) * self._w})
 
 
 class Round15(Round14):

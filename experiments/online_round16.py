@@ -30,7 +30,6 @@ bookkeeping and nothing on a board. Variant ``marks`` (float counts, codes round
 
 from __future__ import annotations
 
-import dataclasses
 import sys
 from pathlib import Path
 
@@ -41,7 +40,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from experiments.online_round8 import main as round8_main  # noqa: E402
 from experiments.online_round14 import seed_table  # noqa: E402
 from experiments.online_round15 import DEFAULT_PARAMS as R15_PARAMS  # noqa: E402
-from experiments.online_round15 import Round15  # noqa: E402
+from experiments.online_round15 import Round15, Weighted  # noqa: E402
 from ga.fail_rates import PRIOR_CODE, RATE_ONE, FailureMarks  # noqa: E402
 from ga.motions import MIRROR_MOTION, MIRROR_STATE  # noqa: E402
 
@@ -82,20 +81,6 @@ class Marks(FailureMarks):
         return np.clip(np.floor(rate + 0.5), 0, RATE_ONE).astype(np.uint8)
 
 
-class Scaled:
-    """An evaluator board whose distance counts are multiplied by ``w`` (the host fitness's weight)."""
-
-    def __init__(self, board, w: float):
-        self._board, self._w = board, w
-
-    def __getattr__(self, name):
-        return getattr(self._board, name)
-
-    def evaluate(self, population):
-        counts = self._board.evaluate(population)
-        return dataclasses.replace(counts, distance=np.asarray(counts.distance) * self._w)
-
-
 class Round16(Round15):
     """Round 15's lifetime (variant ``default``: the main code) with ``marks``."""
 
@@ -107,7 +92,7 @@ class Round16(Round15):
                        "timeout": float(prm["w_timeout"])}
             self.marks = Marks(int(prm["rate_horizon"]), float(prm["decay"]), weights, float(prm["pool_mirror"]))
             if float(prm["w_dist"]) != 1.0:
-                self.evaluator = Scaled(self.evaluator, float(prm["w_dist"]))
+                self.evaluator = Weighted(self.evaluator, float(prm["w_dist"]), "distance")
 
     def learn(self, reason, *a, **k):
         if isinstance(self.marks, Marks):

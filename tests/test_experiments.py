@@ -515,7 +515,7 @@ def test_online_round16_mirror_marks_are_the_main_code_and_the_other_marks_diffe
     board = make_run(OnlineConfig(seed=1)).evaluator
     board.observe(65, 0, 66, False)
     pop = make_run(OnlineConfig(seed=1)).ga.ask()[:5]
-    assert (r16.Scaled(board, 0.5).evaluate(pop).distance == 0.5 * board.evaluate(pop).distance).all()
+    assert (r16.Weighted(board, 0.5, "distance").evaluate(pop).distance == 0.5 * board.evaluate(pop).distance).all()
     capsys.readouterr()
     assert r16.main(["--table", str(out)]) == 0
     assert "| marks pool_mirror=1 | 1-1 (1) |" in capsys.readouterr().out
