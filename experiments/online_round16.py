@@ -3,7 +3,7 @@ behind the rate codes (``ga.fail_rates.FailureMarks``), screened host side only.
 
     python experiments/online_round16.py VARIANT SEEDS [--budget 20000] [--set key=value ...]
                                          [--param key=value ...]
-    python experiments/online_round16.py default 1-16                       # = ehw sim's lifetime
+    python experiments/online_round16.py default 1-16                       # = ehw sim --no-rate-mirror
     python experiments/online_round16.py marks 1-16 --param decay=0.98      # forget old marks
     python experiments/online_round16.py marks 1-16 --param w_loop=0.5      # a loop stop marks half
     python experiments/online_round16.py default 221-240                    # held out
@@ -11,7 +11,7 @@ behind the rate codes (``ga.fail_rates.FailureMarks``), screened host side only.
     python experiments/online_round16.py --table build/experiments/round16.jsonl
 
 A lifetime is round 15's (``experiments.online_round15.Round15``: round 14's instruments on the
-main code's defaults). The boards see only rate codes, so every variant here changes the host's
+main code's defaults, ``rate_mirror`` off; ``marks pool_mirror=1`` is the main code's default). The boards see only rate codes, so every variant here changes the host's
 bookkeeping and nothing on a board. Variant ``marks`` (float counts, codes rounded and clipped to
 0..``RATE_ONE``):
 
@@ -21,8 +21,8 @@ bookkeeping and nothing on a board. Variant ``marks`` (float counts, codes round
 - ``w_crash``, ``w_loop``, ``w_timeout``: what one failure of that kind adds to its pairs' failed
   counts (1 each in the main code);
 - ``rate_horizon``: the steps before a failure whose pairs it marks (round 15's parameter, 8);
-- ``pool_mirror``: the counts of the pair's left-right mirror image (``ga.motions.MIRROR_STATE``,
-  ``MIRROR_MOTION``) are added, times ``pool_mirror``, to its own before the code is computed (round 12
+- ``pool_mirror``: the counts of the pair's left-right mirror image (``ga.fail_rates.mirror_image``)
+  are added, times ``pool_mirror``, to its own before the code is computed (round 12
   found the world's outcome frequencies nearly mirror-symmetric);
 - ``w_dist``: the host fitness takes ``w_dist`` x the distance term (SPEC section 7's weight 0.1 x
   ``w_dist``): forward motions towards an obstacle pay less, now that the rates see what fails.
@@ -41,8 +41,7 @@ from experiments.online_round8 import main as round8_main  # noqa: E402
 from experiments.online_round14 import seed_table  # noqa: E402
 from experiments.online_round15 import DEFAULT_PARAMS as R15_PARAMS  # noqa: E402
 from experiments.online_round15 import Round15, Weighted  # noqa: E402
-from ga.fail_rates import PRIOR_CODE, RATE_ONE, FailureMarks  # noqa: E402
-from ga.motions import MIRROR_MOTION, MIRROR_STATE  # noqa: E402
+from ga.fail_rates import PRIOR_CODE, RATE_ONE, FailureMarks, mirror_image  # noqa: E402
 
 DEFAULT_OUT = Path("build/experiments/round16.jsonl")
 HELD_OUT = range(221, 241)  # never used to choose (201-220: round 15's report; earlier rounds' below)
@@ -74,9 +73,8 @@ class Marks(FailureMarks):
     def codes(self) -> np.ndarray:
         failed, executed = self.failed, self.executed
         if self.mirror:
-            mirrored = np.ix_(MIRROR_STATE, MIRROR_MOTION)
-            failed = failed + self.mirror * failed[mirrored]
-            executed = executed + self.mirror * executed[mirrored]
+            failed = failed + self.mirror * mirror_image(failed)
+            executed = executed + self.mirror * mirror_image(executed)
         rate = (RATE_ONE * failed + PRIOR_CODE) / (executed + 1)
         return np.clip(np.floor(rate + 0.5), 0, RATE_ONE).astype(np.uint8)
 

@@ -60,10 +60,15 @@ def rate_codes(failed: np.ndarray, executed: np.ndarray) -> np.ndarray:
     return ((2 * (RATE_ONE * failed + PRIOR_CODE) + den) // (2 * den)).astype(np.uint8)
 
 
+def mirror_image(counts: np.ndarray) -> np.ndarray:
+    """(256, 8) counts rearranged so that (s, a) holds those of its mirror image (m(s), m(a))
+    (``ga.motions``)."""
+    return np.asarray(counts)[np.ix_(MIRROR_STATE, MIRROR_MOTION)]
+
+
 def mirror_pooled(counts: np.ndarray) -> np.ndarray:
-    """(256, 8) counts plus those of each pair's mirror image (m(s), m(a)) (``ga.motions``)."""
-    counts = np.asarray(counts)
-    return counts + counts[np.ix_(MIRROR_STATE, MIRROR_MOTION)]
+    """(256, 8) counts plus those of each pair's mirror image (a symmetric pair's counts twice)."""
+    return np.asarray(counts) + mirror_image(counts)
 
 
 def prior_codes() -> np.ndarray:
