@@ -519,3 +519,49 @@ def test_online_round16_mirror_marks_are_the_main_code_and_the_other_marks_diffe
     capsys.readouterr()
     assert r16.main(["--table", str(out)]) == 0
     assert "| marks pool_mirror=1 | 1-1 (1) |" in capsys.readouterr().out
+
+
+def test_online_round17_default_and_plain_pool_are_the_main_code_and_the_pools_add_counts(tmp_path, capsys):
+    """Round 17: ``default`` and ``pool`` without parameters are the main code's lifetime (mirror
+    pooled codes); the neighbour pools lend counts between obstacle states only, a cycle stop marks
+    the cycle, the credit lowers a rate, the visit weight raises a busy state's codes."""
+    from cosim.online import OnlineConfig, make_run
+    from ga.motions import X_BACK
+
+    r17 = _script("online_round17")
+    out = tmp_path / "r17.jsonl"
+    assert r17.main(["default", "1", "--budget", "300", "--out", str(out)]) == 0
+    assert r17.main(["pool", "1", "--budget", "300", "--param", "pool_back=0", "--out", str(out)]) == 0
+    runs = [json.loads(line) for line in out.read_text().splitlines()]
+    main_code = make_run(OnlineConfig(seed=1, max_interactions=300)).run()
+    key = ("interactions", "targets", "phases")
+    assert [runs[0][k] for k in key] == [runs[1][k] for k in key] \
+        == [main_code.interactions, main_code.targets, len(main_code.phases)]
+    params = {**r17.DEFAULT_PARAMS, "pool_back": 1.0}
+    marks = r17.Marks(params)
+    s = 1 | 1 << X_BACK  # front and back obstacle bits; its back-flipped neighbour is state 1
+    marks.executed_pair(s, 0, reached=False)
+    marks.failure()
+    assert marks.codes()[1, 0] == marks.codes()[s, 0] == round((250 * 2 + 25) / 3)  # its mirror is itself
+    lone = r17.Marks(params)
+    lone.executed_pair(1 << X_BACK, 0, reached=False)  # back bit alone: its neighbour is free space
+    lone.failure()
+    assert lone.codes()[0, 0] == 25
+    cyc = r17.Marks({**r17.DEFAULT_PARAMS, "mark_cycle": 1})
+    for pair in ((5, 0), (6, 2), (7, 3)):
+        cyc.executed_pair(*pair, reached=False)
+    cyc.cycle, cyc.reason = [(6, 2), (7, 3)], "loop"
+    cyc.failure()
+    assert cyc.failed[5, 0] == 0 and cyc.failed[6, 2] == cyc.failed[7, 3] == 1
+    paid = r17.Marks({**r17.DEFAULT_PARAMS, "credit": 2.0})
+    paid.executed_pair(5, 0, reached=True)
+    assert paid.executed[5, 0] == 3
+    busy = r17.Marks({**r17.DEFAULT_PARAMS, "visit_gamma": 1.0})
+    for _ in range(3):
+        busy.executed_pair(5, 0, reached=False)
+    busy.executed_pair(9, 0, reached=False)
+    busy.failure()
+    assert busy.codes()[5, 1] == 38 and busy.codes()[9, 1] == 13  # 25 x 1.5, 25 x 0.5, halves up
+    capsys.readouterr()
+    assert r17.main(["--table", str(out)]) == 0
+    assert "| pool pool_back=0 | 1-1 (1) |" in capsys.readouterr().out
