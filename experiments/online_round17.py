@@ -46,7 +46,7 @@ from ga.fail_rates import RATE_ONE, FailureMarks, mirror_pooled  # noqa: E402
 from ga.motions import N_STATES, OBSTACLE_MASK, SECTOR_SHIFT, X_BACK, X_LEFT, X_RIGHT  # noqa: E402
 
 DEFAULT_OUT = Path("build/experiments/round17.jsonl")
-HELD_OUT = range(241, 261)  # never used by any round
+HELD_OUT = range(241, 281)  # never used by any round (241-260, then 261-280)
 VARIANTS = ("default", "pool")
 R17_PARAMS = {"pool_back": 0.0, "pool_side": 0.0, "pool_sector": 0.0, "visit_gamma": 0.0, "mark_cycle": 0, "crash_horizon": 0, "credit": 0.0}
 DEFAULT_PARAMS = {**R16_PARAMS, **R17_PARAMS}
@@ -125,7 +125,7 @@ class Round17(Round16):
 
 
 def table(path: Path) -> str:
-    """The screening seeds (1-24), then this round's held-out seeds on their own."""
+    """The screening seeds (1-24), then this round's held-out seeds (241-280) on their own."""
     return "\n\n".join(seed_table(path, seeds) for seeds in (range(1, 25), HELD_OUT))
 
 
