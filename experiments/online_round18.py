@@ -24,6 +24,8 @@ keeping the running controller would have been better than the download.
 from __future__ import annotations
 
 import copy
+import dataclasses
+import math
 import sys
 from pathlib import Path
 
@@ -36,13 +38,16 @@ from experiments.online_round8 import main as round8_main  # noqa: E402
 from experiments.online_round14 import seed_table  # noqa: E402
 from experiments.online_round17 import DEFAULT_PARAMS as R17_PARAMS  # noqa: E402
 from experiments.online_round17 import Round17  # noqa: E402
+from ga.fail_rates import mirror_pooled  # noqa: E402
+from ga.motions import N_MOTIONS, N_STATES, OBSTACLE_MASK  # noqa: E402
 from ga.truth_table import truth_tables  # noqa: E402
 from sim_world.world import World  # noqa: E402
 
 DEFAULT_OUT = Path("build/experiments/round18.jsonl")
 HELD_OUT = range(281, 301)  # never used by any round
-VARIANTS = ("default", "oracle")
-R18_PARAMS = {"oracle_k": 16, "oracle_h": 200, "oracle_keep": 0, "oracle_noise": 0, "probe": 0}
+VARIANTS = ("default", "oracle", "progress")
+R18_PARAMS = {"oracle_k": 16, "oracle_h": 200, "oracle_keep": 0, "oracle_noise": 0, "probe": 0,
+              "progress_w": 10.0, "progress_h": 8}
 DEFAULT_PARAMS = {**R17_PARAMS, **R18_PARAMS}
 
 
@@ -57,6 +62,29 @@ def clone_world(world: World, scratch: World) -> World:
     return scratch
 
 
+class ProgressBoard:
+    """The evaluator board, with the ``progress`` term added to the distance count on the host:
+    w times the summed mean gains of the controller's motions in the obstacle states of S, in
+    units of h forward steps per state (the fitness's distance term has weight 0.1 per 50 mm)."""
+
+    def __init__(self, board, run: "Round18"):
+        self._board, self._run = board, run
+
+    def __getattr__(self, name):
+        return getattr(self._board, name)
+
+    def evaluate(self, population):
+        counts = self._board.evaluate(population)
+        run = self._run
+        w, h = float(run.params["progress_w"]), int(run.params["progress_h"])
+        tables = truth_tables(population, reflex=run.config.reflex)
+        states = run.mirror.states
+        states = states[(states & OBSTACLE_MASK) != 0]
+        total = run.mean_gains()[states[None, :], tables[:, states]].sum(axis=1)
+        extra = 10.0 * w * total / h  # 0.1 extra / (N 50) = w total / (N 50 h)
+        return dataclasses.replace(counts, distance=np.asarray(counts.distance) + extra)
+
+
 class Round18(Round17):
     """Round 17's lifetime with the look-ahead download of ``oracle``."""
 
@@ -66,7 +94,37 @@ class Round18(Round17):
         self.scratch.__dict__ = dict(self.world.__dict__)
         self.scratch._build_physics()
         self.probe_log: list[dict] = []
+        # progress: per (state, motion), the summed distance to the ball gained over the next
+        # progress_h steps of the leg (all of it when the leg reaches the ball first), and count
+        self.gain = np.zeros((N_STATES, N_MOTIONS))
+        self.gain_n = np.zeros((N_STATES, N_MOTIONS))
+        self.pending_gain: list[tuple[int, int, float, int]] = []
+        if self.variant == "progress":
+            self.evaluator = ProgressBoard(self.evaluator, self)
         self.oracle_log = {"phases": 0, "changed": 0, "kept": 0, "lookahead_steps": 0, "rank": []}
+
+    def step(self, motion, record=True):
+        s, world, targets = self.state, self.world, self.targets
+        before = math.hypot(world._bx - world._x, world._by - world._y)
+        step = super().step(motion, record)
+        reached = self.targets > targets
+        now = 0.0 if reached else step.distance_mm
+        horizon = int(self.params["progress_h"])
+        keep = []
+        for ps, pa, d0, age in [*self.pending_gain, (s, int(motion), before, 0)]:
+            if reached or age + 1 >= horizon:
+                self.gain[ps, pa] += d0 - now
+                self.gain_n[ps, pa] += 1
+            else:
+                keep.append((ps, pa, d0, age + 1))
+        self.pending_gain = keep
+        return step
+
+    def mean_gains(self) -> np.ndarray:
+        """(256, 8): each pair's mean gain, mirror pooled; a pair with none: the mean of all."""
+        g, n = mirror_pooled(self.gain), mirror_pooled(self.gain_n)
+        fill = g.sum() / max(n.sum(), 1.0)
+        return np.where(n > 0, g / np.maximum(n, 1.0), fill)
 
     def rollout(self, table: np.ndarray, noise_seed: int | None = None) -> tuple:
         """(targets, -closest distance, steps) of ``table`` run ahead from now in a world copy,
