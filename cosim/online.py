@@ -92,7 +92,7 @@ class OnlineRun:
         self.detectors = config.detectors()
         self.timeout = self.detectors[0]
         self.track = Track(maxlen=max(config.loop_window, 64))
-        self.marks = FailureMarks(mirror=config.rate_mirror) if config.fail_rates else None  # rebuilt on resume
+        self.marks = FailureMarks(mirror=config.rate_mirror, progress=config.progress_weight) if config.fail_rates else None
         # lifetime counters (rebuilt by replay on resume)
         self.motions: list[int] = []  # every motion executed, in order (the replay log)
         self.state_log: list[int] = []  # the state observed after each motion
@@ -119,7 +119,7 @@ class OnlineRun:
 
     def step(self, motion: int, record: bool = True):
         """Execute one motion: one interaction, one model update; relocation after a target."""
-        s = self.state
+        s, before = self.state, self.world.target_distance()
         self.known_crash_repeats += int(self.mirror.crash[s, motion])
         step = self.world.step(motion)
         self.evaluator.observe(s, motion, step.state, step.crashed)
@@ -134,7 +134,7 @@ class OnlineRun:
         self.state = step.state
         reached = step.reached and not step.crashed  # (a crash restores the pose: never both)
         if self.marks is not None:
-            self.marks.executed_pair(s, motion, reached)
+            self.marks.executed_pair(s, motion, reached, before, step.distance_mm)
         if step.crashed:
             self.trajectory.append((x, y, "crash"))
         elif reached:

@@ -38,14 +38,14 @@ from experiments.online_round8 import main as round8_main  # noqa: E402
 from experiments.online_round14 import seed_table  # noqa: E402
 from experiments.online_round17 import DEFAULT_PARAMS as R17_PARAMS  # noqa: E402
 from experiments.online_round17 import Round17  # noqa: E402
-from ga.fail_rates import mirror_pooled  # noqa: E402
-from ga.motions import N_MOTIONS, N_STATES, OBSTACLE_MASK  # noqa: E402
+from ga.fail_rates import RATE_ONE, W_FAIL, FailureMarks, mirror_pooled  # noqa: E402
+from ga.motions import MAX_MOTION_DISTANCE_MM, N_MOTIONS, N_STATES, OBSTACLE_MASK  # noqa: E402
 from ga.truth_table import truth_tables  # noqa: E402
 from sim_world.world import World  # noqa: E402
 
 DEFAULT_OUT = Path("build/experiments/round18.jsonl")
 HELD_OUT = range(281, 301)  # never used by any round
-VARIANTS = ("default", "oracle", "progress")
+VARIANTS = ("default", "oracle", "progress", "progress_codes")
 R18_PARAMS = {"oracle_k": 16, "oracle_h": 200, "oracle_keep": 0, "oracle_noise": 0, "probe": 0,
               "progress_w": 10.0, "progress_h": 8}
 DEFAULT_PARAMS = {**R17_PARAMS, **R18_PARAMS}
@@ -85,6 +85,25 @@ class ProgressBoard:
         return dataclasses.replace(counts, distance=np.asarray(counts.distance) + extra)
 
 
+class ProgressMarks(FailureMarks):
+    """The main code's marks (mirror pooled) whose codes also carry the progress deficit, so every
+    board sums it with no change: code = failure code + round(1.25 w (best mean gain of the state -
+    the pair's mean gain)), clipped to 0..RATE_ONE (1.25 w code units per mm is the weight of
+    ``ProgressBoard`` with h = 8: W_FAIL code / (N RATE_ONE) = w mm / (N 50 h))."""
+
+    def __init__(self, run: "Round18"):
+        super().__init__(mirror=True)
+        self.run = run
+
+    def codes(self) -> np.ndarray:
+        codes = super().codes().astype(float)
+        mean = self.run.mean_gains()
+        w, h = float(self.run.params["progress_w"]), int(self.run.params["progress_h"])
+        per_mm = w * RATE_ONE / (W_FAIL * MAX_MOTION_DISTANCE_MM * h)  # 1.25 w for h = 8
+        deficit = mean.max(axis=1, keepdims=True) - mean
+        return np.clip(np.floor(codes + per_mm * deficit + 0.5), 0, RATE_ONE).astype(np.uint8)
+
+
 class Round18(Round17):
     """Round 17's lifetime with the look-ahead download of ``oracle``."""
 
@@ -101,6 +120,8 @@ class Round18(Round17):
         self.pending_gain: list[tuple[int, int, float, int]] = []
         if self.variant == "progress":
             self.evaluator = ProgressBoard(self.evaluator, self)
+        if self.variant == "progress_codes" and self.config.fail_rates:
+            self.marks = ProgressMarks(self)
         self.oracle_log = {"phases": 0, "changed": 0, "kept": 0, "lookahead_steps": 0, "rank": []}
 
     def step(self, motion, record=True):

@@ -129,15 +129,15 @@ class Recorder(Round18):
         })
 
 
-def collect(seed: int, every: int, repeats: int) -> Path:
-    config = OnlineConfig(seed=seed, max_interactions=20_000)
+def collect(seed: int, every: int, repeats: int, budget: int = 20_000, out: Path = OUT) -> Path:
+    config = OnlineConfig(seed=seed, max_interactions=budget)
     base = make_run(config)
     Recorder.variant, Recorder.params = "default", dict(DEFAULT_PARAMS)
     Recorder.every, Recorder.repeats = every, repeats
     run = Recorder(config, base.controller, base.evaluator)
     run.run()
-    OUT.mkdir(parents=True, exist_ok=True)
-    path = OUT / f"seed{seed}.npz"
+    out.mkdir(parents=True, exist_ok=True)
+    path = out / f"seed{seed}.npz"
     recs = run.records
     arrays = {key: np.array([r[key] for r in recs]) for key in recs[0] if key != "states"}
     arrays["states"] = np.array([np.isin(np.arange(N_STATES), r["states"]) for r in recs])
@@ -407,14 +407,14 @@ RULES = {
 }
 
 
-def score(seeds, only: str = "") -> str:
+def score(seeds, only: str = "", folder: Path = OUT) -> str:
     rows = []
     for name, rule in RULES.items():
         if only not in name:
             continue
         corr, share, picks_base = [], [], 0
         for seed in seeds:
-            data = np.load(OUT / f"seed{seed}.npz")
+            data = np.load(folder / f"seed{seed}.npz")
             n = len(data["targets"])
             for i in range(n):
                 rec = {k: data[k][i] for k in data.files if k not in ("interactions", "log", "fail_at")}

@@ -43,6 +43,7 @@ RATE_ONE = 250  # the code of rate 1
 assert RATE_ONE == round(10 * W_FAIL * MAX_MOTION_DISTANCE_MM)  # the integer score loses F exactly
 PRIOR_CODE = 25  # rate 0.1 for a pair never executed (round 14: prior 0.1 chosen on seeds 1-16)
 HORIZON = 8  # the steps before a failure whose pairs it marks
+PROGRESS_STEPS = 8  # the steps after a pair over which its gain towards the ball is measured
 RATE_BITS = 8  # one code
 FAIL_BITS = 16  # F <= 256 * RATE_ONE
 assert RATE_ONE < 1 << RATE_BITS and N_STATES * RATE_ONE < 1 << FAIL_BITS
@@ -71,6 +72,20 @@ def mirror_pooled(counts: np.ndarray) -> np.ndarray:
     return np.asarray(counts) + mirror_image(counts)
 
 
+def progress_codes(codes: np.ndarray, gain: np.ndarray, count: np.ndarray, weight: float) -> np.ndarray:
+    """The rate codes with each pair's *progress deficit* added (docs/online.md, round 18):
+    code + round(``weight`` RATE_ONE / (W_FAIL D PROGRESS_STEPS) (g_best(s) - g(s, a))), clipped to
+    0..RATE_ONE, where g is the pair's mean gain towards the ball over the PROGRESS_STEPS steps after
+    it (``gain`` / ``count``; a pair never measured: the mean of all) and g_best(s) the best of its
+    state's eight. In the fitness the deficit weighs ``weight`` / (N D PROGRESS_STEPS) per mm."""
+    gain, count = np.asarray(gain, dtype=np.float64), np.asarray(count, dtype=np.float64)
+    mean = np.where(count > 0, gain / np.maximum(count, 1.0), gain.sum() / max(count.sum(), 1.0))
+    per_mm = weight * RATE_ONE / (W_FAIL * MAX_MOTION_DISTANCE_MM * PROGRESS_STEPS)
+    deficit = mean.max(axis=1, keepdims=True) - mean
+    return np.clip(np.floor(np.asarray(codes, dtype=np.float64) + per_mm * deficit + 0.5), 0,
+                   RATE_ONE).astype(np.uint8)
+
+
 def prior_codes() -> np.ndarray:
     """The codes of a cleared board: PRIOR_CODE for every pair."""
     return np.full((N_STATES, N_MOTIONS), PRIOR_CODE, dtype=np.uint8)
@@ -90,20 +105,36 @@ class FailureMarks:
     """The host's marks of one lifetime: executed and failed counts per (state, motion);
     ``mirror``: the codes pool each pair's counts with its mirror image's (:func:`mirror_pooled`)."""
 
-    def __init__(self, horizon: int = HORIZON, mirror: bool = False):
+    def __init__(self, horizon: int = HORIZON, mirror: bool = False, progress: float = 0.0):
         self.horizon = int(horizon)
         self.mirror = bool(mirror)
+        self.progress = float(progress)  # the weight of the progress deficit (progress_codes); 0: none
+        self.gain = np.zeros((N_STATES, N_MOTIONS))  # summed gain towards the ball (mm) per pair
+        self.gain_n = np.zeros((N_STATES, N_MOTIONS))  # executions whose gain is known
+        self.gain_pending: list[tuple[int, int, float, int]] = []  # (state, motion, mm before, age)
         self.executed = np.zeros((N_STATES, N_MOTIONS), dtype=np.int64)
         self.failed = np.zeros((N_STATES, N_MOTIONS), dtype=np.int64)
         self.pending: list[tuple[int, int]] = []  # this leg's pairs, not yet judged
         self.written = prior_codes()  # what the evaluator board holds
 
-    def executed_pair(self, state: int, motion: int, reached: bool) -> None:
-        """One executed motion; ``reached``: it reached the target (the leg's pairs were fine)."""
+    def executed_pair(self, state: int, motion: int, reached: bool, before_mm: float = 0.0,
+                      after_mm: float = 0.0) -> None:
+        """One executed motion; ``reached``: it reached the target (the leg's pairs were fine);
+        ``before_mm``, ``after_mm``: the distance to the ball before and after it (``progress``)."""
         self.executed[state, motion] += 1
         self.pending.append((int(state), int(motion)))
         if reached:
             self.pending.clear()
+        if self.progress:
+            now = 0.0 if reached else float(after_mm)
+            keep = []
+            for s, a, d0, age in [*self.gain_pending, (int(state), int(motion), float(before_mm), 0)]:
+                if reached or age + 1 >= PROGRESS_STEPS:  # its gain is known: add it
+                    self.gain[s, a] += d0 - now
+                    self.gain_n[s, a] += 1
+                else:
+                    keep.append((s, a, d0, age + 1))
+            self.gain_pending = keep
 
     def failure(self) -> None:
         """A failure ended the execution phase: its last ``horizon`` pairs failed, once each."""
@@ -112,9 +143,11 @@ class FailureMarks:
         self.pending.clear()
 
     def codes(self) -> np.ndarray:
-        if self.mirror:
-            return rate_codes(mirror_pooled(self.failed), mirror_pooled(self.executed))
-        return rate_codes(self.failed, self.executed)
+        pool = mirror_pooled if self.mirror else np.asarray
+        codes = rate_codes(pool(self.failed), pool(self.executed))
+        if self.progress:
+            return progress_codes(codes, pool(self.gain), pool(self.gain_n), self.progress)
+        return codes
 
     def changes(self) -> list[tuple[int, int, int]]:
         """The (state, motion, code) the board does not hold yet, in address order; they count as

@@ -565,3 +565,43 @@ def test_online_round17_default_and_plain_pool_are_the_main_code_and_the_pools_a
     capsys.readouterr()
     assert r17.main(["--table", str(out)]) == 0
     assert "| pool pool_back=0 | 1-1 (1) |" in capsys.readouterr().out
+
+
+def test_online_round18_variants_and_the_probe(tmp_path, capsys):
+    """Round 18: ``default`` is the main code's lifetime, and so is the oracle when it may only take
+    the plain download (its look-aheads run on a copy of the world and leave the real one alone);
+    ``progress_codes`` is the main code with ``progress_weight``; the probe's marks rebuilt from its
+    log are the lifetime's own."""
+    import numpy as np
+
+    from cosim.online import OnlineConfig, make_run
+    from sim_world.baseline import baseline_table
+
+    r18 = _script("online_round18")
+    out = tmp_path / "r18.jsonl"
+    assert r18.main(["default", "1", "--budget", "300", "--out", str(out)]) == 0
+    assert r18.main(["oracle", "1", "--budget", "300", "--param", "oracle_k=1", "--out", str(out)]) == 0
+    assert r18.main(["progress_codes", "1", "--budget", "300", "--param", "progress_w=3", "--out", str(out)]) == 0
+    runs = [json.loads(line) for line in out.read_text().splitlines()]
+    key = ("interactions", "targets", "phases", "failures")
+    main_code = make_run(OnlineConfig(seed=1, max_interactions=300)).run()
+    assert [runs[0][k] for k in key] == [runs[1][k] for k in key]
+    assert runs[0]["phases"] == len(main_code.phases) and runs[1]["oracle"]["changed"] == 0
+    progress = make_run(OnlineConfig(seed=1, max_interactions=300, progress_weight=3.0)).run()
+    assert runs[2]["phases"] == len(progress.phases) and runs[2]["targets"] == progress.targets
+    assert runs[2]["phases"] != runs[0]["phases"] or runs[2]["targets"] != runs[0]["targets"]
+    capsys.readouterr()
+    assert r18.main(["--table", str(out)]) == 0
+    assert "| progress_codes progress_w=3 | 1-1 (1) |" in capsys.readouterr().out
+
+    probe = _script("online_round18_probe")
+    path = probe.collect(1, every=1, repeats=1, budget=400, out=tmp_path)
+    data = np.load(path)
+    assert len(data["time"]) >= 2 and (data["tables"][:, 1] == baseline_table()).all()
+    for i in range(len(data["time"])):
+        rec = {k: data[k][i] for k in ("time", "failed", "executed")}
+        rec["log"], rec["fail_at"] = data["log"], data["fail_at"]
+        failed, executed = probe.marks_at(rec)
+        assert (failed == rec["failed"]).all() and (executed == rec["executed"]).all()
+    table = probe.score([1], only="return 8 alone", folder=tmp_path)
+    assert table.count("\n") == 2 and "| return 8 alone |" in table

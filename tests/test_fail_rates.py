@@ -7,8 +7,8 @@ import pytest
 
 from cosim.online import OnlineConfig, make_run
 from ga.evaluator import EvalResult, evaluate_population, fitness
-from ga.fail_rates import (HORIZON, PRIOR_CODE, RATE_ONE, W_FAIL, FailureMarks, fail_counts, mirror_pooled,
-                           prior_codes, rate_codes)
+from ga.fail_rates import (HORIZON, PRIOR_CODE, PROGRESS_STEPS, RATE_ONE, W_FAIL, FailureMarks, fail_counts,
+                           mirror_pooled, prior_codes, progress_codes, rate_codes)
 from ga.hardware_ga import score
 from ga.motions import (MAX_MOTION_DISTANCE_MM, MIRROR_MOTION, MIRROR_STATE, N_MOTIONS, N_STATES, OBSTACLE_MASK,
                         Motion)
@@ -154,3 +154,57 @@ def test_lifetime_writes_the_marks_codes_to_the_board():
     assert plain.marks is None and all(p["best_fails"] == 0 for p in plain.phases)
     own = make_run(OnlineConfig(seed=5, rate_mirror=False, **SMALL)).run()
     assert not own.marks.mirror and (own.evaluator.rates == own.marks.written).all()
+
+
+def test_progress_gain_is_the_distance_won_over_the_next_steps_or_to_the_ball():
+    """Each pair's gain is its distance to the ball less the distance PROGRESS_STEPS steps later;
+    a leg that reaches the ball first gives every pending pair its whole distance."""
+    marks = FailureMarks(mirror=False, progress=1.0)
+    d = 1000.0
+    for i in range(PROGRESS_STEPS + 1):  # state 1 forward, 10 mm closer each step
+        marks.executed_pair(1, 0, reached=False, before_mm=d, after_mm=d - 10)
+        d -= 10
+    assert marks.gain_n[1, 0] == 2 and marks.gain[1, 0] == 2 * 10 * PROGRESS_STEPS
+    marks.executed_pair(2, 3, reached=True, before_mm=d, after_mm=5.0)  # reaches the ball
+    assert marks.gain_pending == []
+    assert marks.gain_n[1, 0] == PROGRESS_STEPS + 1 and marks.gain_n[2, 3] == 1 and marks.gain[2, 3] == d
+    assert marks.gain[1, 0] == 160 + sum(range(920, 981, 10))  # the 7 pending pairs: their whole distance
+    plain = FailureMarks(mirror=False)  # no progress: nothing measured
+    plain.executed_pair(1, 0, reached=False, before_mm=100.0, after_mm=0.0)
+    assert plain.gain_n.sum() == 0
+
+
+def test_progress_codes_add_the_deficit_against_the_states_best_pair():
+    gain = np.zeros((N_STATES, N_MOTIONS))
+    count = np.zeros_like(gain)
+    gain[5, 0], count[5, 0] = 400.0, 2  # mean 200 mm: the state's best
+    gain[5, 2], count[5, 2] = 40.0, 1  # mean 40 mm
+    gain[6, 1], count[6, 1] = -100.0, 1  # another state: the mean of all fills its others
+    codes = prior_codes()
+    out = progress_codes(codes, gain, count, weight=2.0)
+    per_mm = 2.0 * RATE_ONE / (W_FAIL * MAX_MOTION_DISTANCE_MM * PROGRESS_STEPS)  # 2.5 codes a mm
+    fill = (400.0 + 40.0 - 100.0) / 4
+    assert out[5, 0] == PRIOR_CODE
+    assert out[5, 2] == min(RATE_ONE, int(np.floor(PRIOR_CODE + per_mm * 160 + 0.5)))
+    assert out[5, 1] == min(RATE_ONE, int(np.floor(PRIOR_CODE + per_mm * (200 - fill) + 0.5)))
+    assert out[5, 2] == int(np.floor(PRIOR_CODE + per_mm * 160 + 0.5)) - 0 or out[5, 2] == RATE_ONE
+    half = progress_codes(codes, gain, count, weight=0.25)  # 0.3125 codes a mm: nothing clipped
+    assert half[5, 2] == int(np.floor(PRIOR_CODE + 0.3125 * 160 + 0.5)) == 75
+    assert out[6, 0] == PRIOR_CODE and out[6, 1] == RATE_ONE  # 185 mm below the fill: clipped
+    assert (progress_codes(codes, gain, count, weight=0.0) == codes).all()
+
+
+def test_progress_weight_is_checked_and_rides_on_the_rate_codes():
+    with pytest.raises(ValueError, match="--progress-weight must be a finite weight >= 0"):
+        OnlineConfig(progress_weight=-1.0)
+    with pytest.raises(ValueError, match="--progress-weight needs --fail-rates"):
+        OnlineConfig(progress_weight=3.0, fail_rates=False)
+    run = make_run(OnlineConfig(seed=5, progress_weight=3.0, **SMALL)).run()
+    assert run.marks.progress == 3.0 and run.marks.gain_n.sum() > 0
+    assert (run.evaluator.rates == run.marks.written).all()
+    assert (run.marks.codes() == progress_codes(
+        rate_codes(mirror_pooled(run.marks.failed), mirror_pooled(run.marks.executed)),
+        mirror_pooled(run.marks.gain), mirror_pooled(run.marks.gain_n), 3.0)).all()
+    plain = make_run(OnlineConfig(seed=5, **SMALL)).run()
+    assert plain.marks.gain_n.sum() == 0
+    assert [p["best_fails"] for p in run.phases] != [p["best_fails"] for p in plain.phases]
