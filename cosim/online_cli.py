@@ -80,10 +80,10 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
     p.add_argument("--rate-mirror", action=argparse.BooleanOptionalAction, default=d.rate_mirror,
                    help="with --fail-rates, each pair's rate code pools its counts with its left-right "
                         "mirror image's (docs/online.md, round 16; default on; --no-rate-mirror: round 15's codes)")
-    p.add_argument("--progress-weight", type=float, default=d.progress_weight,
+    p.add_argument("--progress-weight", type=float, default=None,
                    help="with --fail-rates, each rate code also carries the pair's progress deficit "
                         "(its mean gain towards the ball over the next 8 steps against its state's "
-                        "best) with this weight (docs/online.md, round 18; 0: none)")
+                        f"best) with this weight (docs/online.md, round 18; default {d.progress_weight}; 0: none)")
     p.add_argument("--loop-blame", choices=LOOP_BLAMES, default=d.loop_blame,
                    help="the (state, motion) a cycle stop is blamed on: cycle = the first pair of "
                         "the cycle that stopped the leg (default), leg = the leg's most frequent "
@@ -100,6 +100,9 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
 
 def config_from_args(args) -> OnlineConfig:
     """The OnlineConfig of parsed options (ValueError naming the option for a bad value)."""
+    progress = OnlineConfig.progress_weight if args.progress_weight is None else args.progress_weight
+    if args.progress_weight and not args.fail_rates:
+        raise ValueError("--progress-weight needs --fail-rates (the deficit rides on the rate codes)")
     return OnlineConfig(
         seed=args.seed, arena=args.arena, n_targets=args.targets + args.continue_past_64,
         noise=args.noise, reflex=args.reflex, population=args.population,
@@ -110,7 +113,7 @@ def config_from_args(args) -> OnlineConfig:
         loop_reentries=args.loop_reentries, loop_repeats=args.loop_repeats,
         loop_radius_mm=args.loop_radius_mm, loop_cycles=args.loop_cycles, distance_rule=args.distance,
         escape=args.escape, fail_rates=args.fail_rates, rate_mirror=args.rate_mirror,
-        progress_weight=args.progress_weight, loop_blame=args.loop_blame, max_interactions=args.max_interactions,
+        progress_weight=progress, loop_blame=args.loop_blame, max_interactions=args.max_interactions,
         blind_bit=args.blind_bit, blind_after_target=args.blind_after_target,
         ga=args.ga, lanes=args.lanes,
     )

@@ -70,7 +70,7 @@ class OnlineConfig:
     rate_mirror: bool = True
     # each rate code also carries the pair's progress deficit, its mean gain towards the ball over
     # the next 8 steps against the best of its state's (ga.fail_rates.progress_codes; docs/online.md,
-    # round 18), with this weight; 0: none
+    # round 18), with this weight; 0: none (and none without fail_rates)
     progress_weight: float = 0.0
     max_interactions: int = 100_000  # end the lifetime there even short of n_targets (0: no limit)
     # The GA of the learning phases: "host" (ga.evolution on the host, the evaluator board
@@ -106,8 +106,8 @@ class OnlineConfig:
         value = self.progress_weight
         check(isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
               and value >= 0, "progress_weight", "a finite weight >= 0")
-        if self.progress_weight and not self.fail_rates:
-            raise ValueError("--progress-weight needs --fail-rates (the deficit rides on the rate codes)")
+        if not self.fail_rates:  # the deficit rides on the rate codes: none without them
+            object.__setattr__(self, "progress_weight", 0.0)
         check(self.distance_rule in DISTANCE_RULES, "distance_rule", f"one of {', '.join(DISTANCE_RULES)}")
         for field in ("noise", "reflex", "escape", "fail_rates", "rate_mirror"):
             check(isinstance(getattr(self, field), bool), field, "True or False")

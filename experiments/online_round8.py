@@ -59,6 +59,7 @@ class Round8(Round7):
 
     fail_rates = False  # OnlineConfig.fail_rates of run_one (round 15 made it the default)
     rate_mirror = False  # OnlineConfig.rate_mirror of run_one (round 16 made it the default)
+    progress_weight = 0.0  # OnlineConfig.progress_weight of run_one (round 18 made 3.0 the default)
 
     def __init__(self, *a, **k):
         super().__init__(*a, **k)
@@ -131,7 +132,8 @@ def run_one(variant: str, seed: int, budget: int, settings: dict, params: dict, 
     cls, defaults = cls or Round8, defaults or DEFAULT_PARAMS
     # rounds 8-14 predate round 15's default fail_rates (their classes say False; --set overrides)
     config = OnlineConfig(seed=seed, max_interactions=budget, **{"fail_rates": cls.fail_rates,
-                                                                      "rate_mirror": cls.rate_mirror, **settings})
+                                                                      "rate_mirror": cls.rate_mirror,
+                                                                      "progress_weight": cls.progress_weight, **settings})
     base = make_run(config)
     cls.variant, cls.params = variant, {**defaults, **params}
     run = cls(config, base.controller, base.evaluator)

@@ -197,8 +197,13 @@ def test_progress_codes_add_the_deficit_against_the_states_best_pair():
 def test_progress_weight_is_checked_and_rides_on_the_rate_codes():
     with pytest.raises(ValueError, match="--progress-weight must be a finite weight >= 0"):
         OnlineConfig(progress_weight=-1.0)
+    assert OnlineConfig(progress_weight=3.0, fail_rates=False).progress_weight == 0.0  # no codes to ride on
+    from cosim.online_cli import build_parser, config_from_args
+
+    args = build_parser().parse_args(["--no-fail-rates", "--progress-weight", "3"])
     with pytest.raises(ValueError, match="--progress-weight needs --fail-rates"):
-        OnlineConfig(progress_weight=3.0, fail_rates=False)
+        config_from_args(args)
+    assert config_from_args(build_parser().parse_args(["--no-fail-rates"])).progress_weight == 0.0
     run = make_run(OnlineConfig(seed=5, progress_weight=3.0, **SMALL)).run()
     assert run.marks.progress == 3.0 and run.marks.gain_n.sum() > 0
     assert (run.evaluator.rates == run.marks.written).all()
