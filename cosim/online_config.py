@@ -70,8 +70,8 @@ class OnlineConfig:
     rate_mirror: bool = True
     # each rate code also carries the pair's progress deficit, its mean gain towards the ball over
     # the next 8 steps against the best of its state's (ga.fail_rates.progress_codes; docs/online.md,
-    # round 18), with this weight; 0: none (and none without fail_rates)
-    progress_weight: float = 0.0
+    # round 18: the default since then), with this weight; 0: none (and none without fail_rates)
+    progress_weight: float = 3.0
     max_interactions: int = 100_000  # end the lifetime there even short of n_targets (0: no limit)
     # The GA of the learning phases: "host" (ga.evolution on the host, the evaluator board
     # evaluates) or "hardware" (the learning board: ga.hardware_ga / hdl.learner with `lanes`

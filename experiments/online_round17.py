@@ -74,11 +74,11 @@ class Marks(FailureMarks):
         self.credit, self.prior = float(params["credit"]), int(params["prior_code"])
         self.executed = self.executed.astype(np.float64)
 
-    def executed_pair(self, state: int, motion: int, reached: bool) -> None:
+    def executed_pair(self, state: int, motion: int, reached: bool, *distances) -> None:
         if reached and self.credit:
             for s, a in set(self.pending[-(self.horizon - 1):] + [(int(state), int(motion))]):
                 self.executed[s, a] += self.credit
-        super().executed_pair(state, motion, reached)
+        super().executed_pair(state, motion, reached, *distances)
 
     def failure(self) -> None:
         if self.mark_cycle and self.cycle:

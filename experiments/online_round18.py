@@ -3,11 +3,13 @@ could save. An *instrument*, not a method: the oracle looks into the world's fut
 
     python experiments/online_round18.py VARIANT SEEDS [--budget 20000] [--set key=value ...]
                                          [--param key=value ...]
-    python experiments/online_round18.py default 1-16                        # = ehw sim
+    python experiments/online_round18.py default 1-16                        # = ehw sim --progress-weight 0
     python experiments/online_round18.py oracle 1-16 --param oracle_k=16     # the bound
     python experiments/online_round18.py --table build/experiments/round18.jsonl
 
-A lifetime is round 17's (``experiments.online_round17.Round17``) on the main code's defaults.
+A lifetime is round 17's (``experiments.online_round17.Round17``) on the main code's defaults before
+this round (``progress_weight`` 0; variant ``progress_codes`` with ``progress_w=3`` is the main code's
+default since).
 Variant ``oracle``: after each learning phase's generations, the ``oracle_k`` fittest distinct
 controllers of the population (by the model fitness, the download rule's own candidates; with
 ``oracle_keep`` = 1 the running controller as well) are each run ahead in a copy of the real
@@ -105,7 +107,10 @@ class ProgressMarks(FailureMarks):
 
 
 class Round18(Round17):
-    """Round 17's lifetime with the look-ahead download of ``oracle``."""
+    """Round 17's lifetime (the main code before this round: ``progress_weight`` 0) with the
+    look-ahead download of ``oracle``, the ``probe`` and the progress variants."""
+
+    progress_weight = 0.0  # round 18 made 3.0 the main code's default (``progress_codes`` is it)
 
     def __init__(self, *a, **k):
         super().__init__(*a, **k)

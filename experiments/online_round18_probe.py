@@ -5,7 +5,8 @@ how well the candidates really do, so that fitness rules can be compared off-lin
     python experiments/online_round18_probe.py collect SEEDS [--every 2] [--repeats 6]
     python experiments/online_round18_probe.py score [--seeds 1-4]         # the table
 
-``collect``: the main code's lifetime (``ehw sim``; the recording changes nothing in it); after every
+``collect``: the main code's lifetime before this round (``ehw sim --progress-weight 0``; the
+recording changes nothing in it); after every
 ``every``-th failure's learning phase it saves the board's world model, the host's failure counts,
 the state set S, and candidates with their real-world quality: the download, the hand-written
 baseline, the 12 fittest distinct controllers of the population, 8 mixes (the download with the
@@ -130,7 +131,7 @@ class Recorder(Round18):
 
 
 def collect(seed: int, every: int, repeats: int, budget: int = 20_000, out: Path = OUT) -> Path:
-    config = OnlineConfig(seed=seed, max_interactions=budget)
+    config = OnlineConfig(seed=seed, max_interactions=budget, progress_weight=0.0)  # the lifetimes before round 18
     base = make_run(config)
     Recorder.variant, Recorder.params = "default", dict(DEFAULT_PARAMS)
     Recorder.every, Recorder.repeats = every, repeats
@@ -360,7 +361,21 @@ def with_deficit_codes(w_fail: float, w_gain: float, scale_mm: float = 0.0, hori
     return rule
 
 
+def with_main_progress(weight: float):
+    """The main code's codes with ``progress_weight`` = weight (``ga.fail_rates.progress_codes``)."""
+    from ga.fail_rates import progress_codes as main_codes
+
+    def rule(rec, tables):
+        g, n = gains_at(rec, PROGRESS_STEPS)
+        base = rate_codes(mirror_pooled(rec["failed"]), mirror_pooled(rec["executed"]))
+        codes = main_codes(base, mirror_pooled(g), mirror_pooled(n), weight)
+        return model_fitness(spec_counts(rec, tables, codes), int(rec["states"].sum()))
+    return rule
+
+
 RULES = {
+    "main code, progress_weight 3": with_main_progress(3.0),
+    "main code, progress_weight 1": with_main_progress(1.0),
     "deficit codes only": with_deficit_codes(0.0, 1.0),
     "deficit codes, fail 0.5 + gain 0.5": with_deficit_codes(0.5, 0.5),
     "deficit codes, fail 1 + gain 1": with_deficit_codes(1.0, 1.0),

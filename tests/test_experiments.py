@@ -471,7 +471,7 @@ def test_online_round15_default_is_the_lifetime_and_rates_change_the_marks(tmp_p
     assert r15.main(["rates", "1", "--budget", "150", "--param", "w=2", "--param", "prior_code=12",
                      "--out", str(out)]) == 0
     runs = [json.loads(line) for line in out.read_text().splitlines()]
-    plain = make_run(OnlineConfig(seed=1, max_interactions=150, rate_mirror=False)).run()  # round 15's codes
+    plain = make_run(OnlineConfig(seed=1, max_interactions=150, rate_mirror=False, progress_weight=0.0)).run()  # round 15's codes
     assert (runs[0]["interactions"], runs[0]["phases"]) == (plain.interactions, len(plain.phases))
     assert runs[1]["params"] == {"w": 2, "prior_code": 12}
     marks = r15.Marks(horizon=8, prior_code=12)
@@ -497,8 +497,8 @@ def test_online_round16_mirror_marks_are_the_main_code_and_the_other_marks_diffe
     assert r16.main(["default", "1", "--budget", "300", "--out", str(out)]) == 0
     assert r16.main(["marks", "1", "--budget", "300", "--param", "pool_mirror=1", "--out", str(out)]) == 0
     runs = [json.loads(line) for line in out.read_text().splitlines()]
-    own = make_run(OnlineConfig(seed=1, max_interactions=300, rate_mirror=False)).run()
-    pooled = make_run(OnlineConfig(seed=1, max_interactions=300)).run()
+    own = make_run(OnlineConfig(seed=1, max_interactions=300, rate_mirror=False, progress_weight=0.0)).run()
+    pooled = make_run(OnlineConfig(seed=1, max_interactions=300, progress_weight=0.0)).run()
     assert (runs[0]["interactions"], runs[0]["phases"]) == (own.interactions, len(own.phases))
     key = ("interactions", "targets", "phases")
     assert [runs[1][k] for k in key] == [pooled.interactions, pooled.targets, len(pooled.phases)]
@@ -533,7 +533,7 @@ def test_online_round17_default_and_plain_pool_are_the_main_code_and_the_pools_a
     assert r17.main(["default", "1", "--budget", "300", "--out", str(out)]) == 0
     assert r17.main(["pool", "1", "--budget", "300", "--param", "pool_back=0", "--out", str(out)]) == 0
     runs = [json.loads(line) for line in out.read_text().splitlines()]
-    main_code = make_run(OnlineConfig(seed=1, max_interactions=300)).run()
+    main_code = make_run(OnlineConfig(seed=1, max_interactions=300, progress_weight=0.0)).run()  # before round 18
     key = ("interactions", "targets", "phases")
     assert [runs[0][k] for k in key] == [runs[1][k] for k in key] \
         == [main_code.interactions, main_code.targets, len(main_code.phases)]
@@ -584,7 +584,7 @@ def test_online_round18_variants_and_the_probe(tmp_path, capsys):
     assert r18.main(["progress_codes", "1", "--budget", "300", "--param", "progress_w=3", "--out", str(out)]) == 0
     runs = [json.loads(line) for line in out.read_text().splitlines()]
     key = ("interactions", "targets", "phases", "failures")
-    main_code = make_run(OnlineConfig(seed=1, max_interactions=300)).run()
+    main_code = make_run(OnlineConfig(seed=1, max_interactions=300, progress_weight=0.0)).run()  # before round 18
     assert [runs[0][k] for k in key] == [runs[1][k] for k in key]
     assert runs[0]["phases"] == len(main_code.phases) and runs[1]["oracle"]["changed"] == 0
     progress = make_run(OnlineConfig(seed=1, max_interactions=300, progress_weight=3.0)).run()

@@ -62,7 +62,7 @@ def test_other_seed_gives_another_lifetime():
                                      {"loop_window": 15, "distance_rule": "covered", "loop_cycles": 0},
                                      {"fail_rates": False}])
 def test_resume_equals_uninterrupted(tmp_path, options):
-    config = OnlineConfig(seed=5, **{**SMALL, **options})
+    config = OnlineConfig(seed=9, **{**SMALL, **options})  # 5-6 learning phases under every option
     whole = make_run(config, out=tmp_path / "whole").run()
     assert len(whole.phases) >= 3, "the test needs a run with several learning phases"
     part = make_run(config, out=tmp_path / "part").run(stop_after_phases=2)
@@ -215,7 +215,7 @@ def test_distance_rule_reaches_the_evaluator_and_changes_the_lifetime():
 
 
 def test_phase_records_name_the_detector_and_the_escape():
-    run = make_run(OnlineConfig(seed=5, **{**SMALL, "loop_window": 15})).run()
+    run = make_run(OnlineConfig(seed=10, **{**SMALL, "loop_window": 15})).run()
     loops = [p for p in run.phases if p["reason"] == "loop"]
     assert loops and {p["detector"] for p in loops} <= {"window", "reentries", "repeats", "cycles"}
     assert all("detector" not in p for p in run.phases if p["reason"] != "loop")
