@@ -267,22 +267,27 @@ class Round18(Round17):
                                "ahead_download": [round(v, 2) for v in d], "ahead_baseline": [round(v, 2) for v in b],
                                "ahead_best8": [round(v, 2) for v in best]})
 
+    def learn_watching(self, reason, steps, state, motion, detector="") -> dict:
+        """Round 17's learning phase; returns the population and fitness the download chose from."""
+        last = {}
+        saved = online_mod.choose_download
+
+        def choose(population, fitness, blamed=None, reflex=True):
+            last["pop"], last["fit"] = population.copy(), fitness.copy()
+            return saved(population, fitness, blamed, reflex)
+
+        online_mod.choose_download = choose
+        try:
+            super().learn(reason, steps, state, motion, detector)
+        finally:
+            online_mod.choose_download = saved
+        return last
+
     def learn(self, reason, steps, state, motion, detector=""):
         if self.variant != "oracle":
             if not int(self.params["probe"]):
                 return super().learn(reason, steps, state, motion, detector)
-            last = {}
-            saved = online_mod.choose_download
-
-            def choose(population, fitness, blamed=None, reflex=True):
-                last["pop"], last["fit"] = population.copy(), fitness.copy()
-                return saved(population, fitness, blamed, reflex)
-
-            online_mod.choose_download = choose
-            try:
-                super().learn(reason, steps, state, motion, detector)
-            finally:
-                online_mod.choose_download = saved
+            last = self.learn_watching(reason, steps, state, motion, detector)
             if reason in online_mod.FAILURES:
                 self.probe(last["pop"], last["fit"])
             return None

@@ -70,18 +70,7 @@ class Recorder(Round18):
         return step
 
     def learn(self, reason, steps, state, motion, detector=""):
-        last = {}
-        saved = online_mod.choose_download
-
-        def choose(population, fitness, blamed=None, reflex=True):
-            last["pop"], last["fit"] = population.copy(), fitness.copy()
-            return saved(population, fitness, blamed, reflex)
-
-        online_mod.choose_download = choose
-        try:
-            super().learn(reason, steps, state, motion, detector)
-        finally:
-            online_mod.choose_download = saved
+        last = self.learn_watching(reason, steps, state, motion, detector)
         if reason in online_mod.FAILURES:
             self.fail_at.append(self.interactions)
             self.failures += 1
