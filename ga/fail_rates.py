@@ -20,6 +20,11 @@ did:
   ``MIRROR_MOTION``) and the world's outcome frequencies nearly so (round 12), so each pair's code
   is computed from its own counts plus those of its mirror image (a symmetric pair's counts twice):
   twice the data per code, and a failure on one side warns the other.
+- **Progress deficit** (:func:`progress_codes`, ``FailureMarks(progress=w)``, the on-line default
+  since round 18 with w = 3). The host also keeps each pair's summed gain towards the ball over the
+  ``PROGRESS_STEPS`` steps after it (the whole distance when the leg reaches the ball first), and the
+  code grows by 1.25 w per mm its mean gain falls short of the best pair of its state: of all that the
+  robot learns, only its progress ranked controllers as the real world does (docs/online.md, round 18).
 - **Fail count** (the evaluator, :func:`fail_counts`). F = the sum of the codes of the controller's
   motions in the obstacle states of S, each state once: the shape of the distance term, summed
   in the same trace step. The fitness loses ``W_FAIL`` F / (N ``RATE_ONE``) (``ga.evaluator.fitness``):
