@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-import math
 import sys
 from pathlib import Path
 
@@ -40,7 +39,7 @@ from experiments.online_round8 import main as round8_main  # noqa: E402
 from experiments.online_round14 import seed_table  # noqa: E402
 from experiments.online_round17 import DEFAULT_PARAMS as R17_PARAMS  # noqa: E402
 from experiments.online_round17 import Round17  # noqa: E402
-from ga.fail_rates import RATE_ONE, W_FAIL, FailureMarks, mirror_pooled  # noqa: E402
+from ga.fail_rates import RATE_ONE, W_FAIL, FailureMarks, mean_gains, mirror_pooled  # noqa: E402
 from ga.motions import MAX_MOTION_DISTANCE_MM, N_MOTIONS, N_STATES, OBSTACLE_MASK  # noqa: E402
 from ga.truth_table import truth_tables  # noqa: E402
 from sim_world.world import World  # noqa: E402
@@ -130,8 +129,9 @@ class Round18(Round17):
         self.oracle_log = {"phases": 0, "changed": 0, "kept": 0, "lookahead_steps": 0, "rank": []}
 
     def step(self, motion, record=True):
-        s, world, targets = self.state, self.world, self.targets
-        before = math.hypot(world._bx - world._x, world._by - world._y)
+        if self.variant not in ("progress", "progress_codes"):  # nothing reads the gains
+            return super().step(motion, record)
+        s, targets, before = self.state, self.targets, self.world.target_distance()
         step = super().step(motion, record)
         reached = self.targets > targets
         now = 0.0 if reached else step.distance_mm
@@ -148,9 +148,7 @@ class Round18(Round17):
 
     def mean_gains(self) -> np.ndarray:
         """(256, 8): each pair's mean gain, mirror pooled; a pair with none: the mean of all."""
-        g, n = mirror_pooled(self.gain), mirror_pooled(self.gain_n)
-        fill = g.sum() / max(n.sum(), 1.0)
-        return np.where(n > 0, g / np.maximum(n, 1.0), fill)
+        return mean_gains(mirror_pooled(self.gain), mirror_pooled(self.gain_n))
 
     def rollout(self, table: np.ndarray, noise_seed: int | None = None) -> tuple:
         """(targets, -closest distance, steps) of ``table`` run ahead from now in a world copy,
@@ -292,7 +290,6 @@ class Round18(Round17):
                 self.probe(last["pop"], last["fit"])
             return None
         self.plain_download = online_mod.choose_download
-        saved_load = self.controller.load
         running = None if self.best_rows is None else self.best_rows.copy()
 
         def choose(population, fitness, blamed=None, reflex=True):
@@ -306,7 +303,6 @@ class Round18(Round17):
             super().learn(reason, steps, state, motion, detector)
         finally:
             online_mod.choose_download = self.plain_download
-            self.controller.load = saved_load
 
     def extra_figures(self) -> dict:
         log = dict(self.oracle_log)

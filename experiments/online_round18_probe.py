@@ -24,7 +24,6 @@ of the best candidate's; means over the phases of the seeds.
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 from pathlib import Path
 
@@ -39,14 +38,14 @@ from experiments.online_round8 import seeds_of  # noqa: E402
 from experiments.online_round18 import DEFAULT_PARAMS, Round18  # noqa: E402
 from ga.evaluator import evaluate_tables  # noqa: E402
 from ga.evaluator import fitness as model_fitness  # noqa: E402
-from ga.fail_rates import RATE_ONE, mirror_pooled, rate_codes  # noqa: E402
+from ga.fail_rates import RATE_ONE, mean_gains, mirror_pooled, progress_codes, rate_codes  # noqa: E402
 from ga.motions import N_MOTIONS, N_STATES, OBSTACLE_MASK  # noqa: E402
 from ga.truth_table import truth_tables  # noqa: E402
 from ga.world_model import WorldModel  # noqa: E402
 from sim_world.baseline import baseline_table  # noqa: E402
 
 OUT = Path("build/experiments/round18_probe")
-PROGRESS_STEPS = 8
+from ga.fail_rates import PROGRESS_STEPS  # noqa: E402  (the main code's, 8)
 
 
 class Recorder(Round18):
@@ -63,9 +62,8 @@ class Recorder(Round18):
         self.fail_at: list[int] = []  # the interactions at which a failure ended a phase
 
     def step(self, motion, record=True):
-        s, world, targets = self.state, self.world, self.targets
-        before = math.hypot(world._bx - world._x, world._by - world._y)
-        step = super().step(motion, record)  # Round18 keeps the gains
+        s, targets, before = self.state, self.targets, self.world.target_distance()
+        step = super().step(motion, record)
         self.log.append((s, int(motion), int(self.targets > targets), int(round(before))))
         return step
 
@@ -115,7 +113,6 @@ class Recorder(Round18):
             "valid": model.valid.copy(), "crash": model.crash.copy(), "next": model.next_state.copy(),
             "failed": self.marks.failed.copy(), "executed": self.marks.executed.copy(),
             "visits": self.marks.executed.sum(axis=1),
-            "progress": self.gain.copy(), "progress_n": self.gain_n.copy(),
         })
 
 
@@ -169,29 +166,6 @@ def weighted(wc=0.5, wl=0.4, wd=0.1, wf=0.5, prior=None):
     def rule(rec, tables):
         c, l, d, f, n = terms(rec, tables, prior)
         return -wc * c / n - wl * l / n + wd * d / (n * 50) - wf * f / (n * RATE_ONE)
-    return rule
-
-
-def gains(rec, prior: float = 0.0) -> np.ndarray:
-    """(256, 8): the mean distance gained (mm) over the PROGRESS_STEPS steps after each pair,
-    mirror pooled; ``prior`` for a pair never executed."""
-    g, n = mirror_pooled(rec["progress"]), mirror_pooled(rec["progress_n"])
-    return np.where(n > 0, g / np.maximum(n, 1), prior)
-
-
-def with_gain(w: float, base=None, prior: float = 0.0, shrink: float = 0.0):
-    """``base`` (the default rule) plus w times the mean gain of the controller's motions in the
-    obstacle states of S (in units of PROGRESS_STEPS forward steps, per state of S)."""
-    def rule(rec, tables):
-        value = (base or rule_default)(rec, tables) if w < 1e9 else 0.0
-        g = gains(rec, prior)
-        if shrink:
-            n = mirror_pooled(rec["progress_n"])
-            g = g * n / (n + shrink) + prior * shrink / (n + shrink)
-        states = np.flatnonzero(rec["states"] & ((np.arange(N_STATES) & OBSTACLE_MASK) != 0))
-        total = g[states[None, :], tables[:, states]].sum(axis=1)
-        n_s = int(rec["states"].sum())
-        return value + min(w, 1e9) * total / (n_s * 50 * PROGRESS_STEPS) if w < 1e9 else total
     return rule
 
 
@@ -297,8 +271,7 @@ def with_return(horizon: int, w: float | None = None, prior: str = "mean"):
     def rule(rec, tables):
         g, n = gains_at(rec, horizon)
         g, n = mirror_pooled(g), mirror_pooled(n)
-        fill = g.sum() / max(n.sum(), 1) if prior == "mean" else 0.0
-        mean = np.where(n > 0, g / np.maximum(n, 1), fill)
+        mean = mean_gains(g, n) if prior == "mean" else np.where(n > 0, g / np.maximum(n, 1), 0.0)
         states = np.flatnonzero(rec["states"] & ((np.arange(N_STATES) & OBSTACLE_MASK) != 0))
         total = mean[states[None, :], tables[:, states]].sum(axis=1)
         if w is None:
@@ -307,57 +280,12 @@ def with_return(horizon: int, w: float | None = None, prior: str = "mean"):
     return rule
 
 
-def progress_codes(failed, executed, gain, count, weight: float, horizon: int = 8) -> np.ndarray:
-    """(256, 8) rate codes with a progress deficit added: the mirror-pooled failure code plus
-    ``weight`` RATE_ONE (D horizon - g) / (2 D horizon), g = the pair's mean gain over ``horizon``
-    steps (mirror pooled; a pair with no gain yet: the mean of all), clipped to 0..RATE_ONE."""
-    codes = rate_codes(mirror_pooled(failed), mirror_pooled(executed)).astype(float)
-    g, n = mirror_pooled(gain), mirror_pooled(count)
-    fill = g.sum() / max(n.sum(), 1)
-    mean = np.where(n > 0, g / np.maximum(n, 1), fill)
-    reach = 50.0 * horizon
-    deficit = np.clip((reach - mean) / (2 * reach), 0.0, 1.0)
-    return np.clip(np.floor(codes + weight * RATE_ONE * deficit + 0.5), 0, RATE_ONE).astype(np.uint8)
-
-
-def with_progress_codes(weight: float, horizon: int = 8):
-    def rule(rec, tables):
-        g, n = gains_at(rec, horizon)
-        codes = progress_codes(rec["failed"], rec["executed"], g, n, weight, horizon)
-        return model_fitness(spec_counts(rec, tables, codes), int(rec["states"].sum()))
-    return rule
-
-
-def deficit_codes(failed, executed, gain, count, w_fail: float, w_gain: float, scale_mm: float = 0.0):
-    """(256, 8) codes w_fail x the failure code + w_gain x RATE_ONE x the pair's progress deficit: in
-    its state, (best mean gain - its mean gain) / (best - worst) (``scale_mm`` = 0), or / scale_mm,
-    clipped to 0..1; mean gains mirror pooled, a pair with none: the mean of all."""
-    codes = rate_codes(mirror_pooled(failed), mirror_pooled(executed)).astype(float)
-    g, n = mirror_pooled(gain), mirror_pooled(count)
-    fill = g.sum() / max(n.sum(), 1)
-    mean = np.where(n > 0, g / np.maximum(n, 1), fill)
-    top, low = mean.max(axis=1, keepdims=True), mean.min(axis=1, keepdims=True)
-    span = np.maximum(top - low, 1e-9) if not scale_mm else scale_mm
-    deficit = np.clip((top - mean) / span, 0.0, 1.0)
-    return np.clip(np.floor(w_fail * codes + w_gain * RATE_ONE * deficit + 0.5), 0, RATE_ONE).astype(np.uint8)
-
-
-def with_deficit_codes(w_fail: float, w_gain: float, scale_mm: float = 0.0, horizon: int = 8):
-    def rule(rec, tables):
-        g, n = gains_at(rec, horizon)
-        codes = deficit_codes(rec["failed"], rec["executed"], g, n, w_fail, w_gain, scale_mm)
-        return model_fitness(spec_counts(rec, tables, codes), int(rec["states"].sum()))
-    return rule
-
-
 def with_main_progress(weight: float):
     """The main code's codes with ``progress_weight`` = weight (``ga.fail_rates.progress_codes``)."""
-    from ga.fail_rates import progress_codes as main_codes
-
     def rule(rec, tables):
         g, n = gains_at(rec, PROGRESS_STEPS)
         base = rate_codes(mirror_pooled(rec["failed"]), mirror_pooled(rec["executed"]))
-        codes = main_codes(base, mirror_pooled(g), mirror_pooled(n), weight)
+        codes = progress_codes(base, mirror_pooled(g), mirror_pooled(n), weight)
         return model_fitness(spec_counts(rec, tables, codes), int(rec["states"].sum()))
     return rule
 
@@ -365,14 +293,6 @@ def with_main_progress(weight: float):
 RULES = {
     "main code, progress_weight 3": with_main_progress(3.0),
     "main code, progress_weight 1": with_main_progress(1.0),
-    "deficit codes only": with_deficit_codes(0.0, 1.0),
-    "deficit codes, fail 0.5 + gain 0.5": with_deficit_codes(0.5, 0.5),
-    "deficit codes, fail 1 + gain 1": with_deficit_codes(1.0, 1.0),
-    "deficit codes, scale 200 mm, fail 0.5 + gain 0.5": with_deficit_codes(0.5, 0.5, 200.0),
-    "deficit codes only, scale 200 mm": with_deficit_codes(0.0, 1.0, 200.0),
-    "codes + 0.5 progress": with_progress_codes(0.5),
-    "codes + 1 progress": with_progress_codes(1.0),
-    "codes + 2 progress": with_progress_codes(2.0),
     "default + 3 return 8": with_return(8, 3.0),
     "default + 10 return 8": with_return(8, 10.0),
     "return 8 alone": with_return(8),
@@ -392,13 +312,6 @@ RULES = {
     "context-adjusted marks, window 25": with_marks(window=25),
     "context-adjusted marks, window 100": with_marks(window=100),
     "context-adjusted marks, window 25, w 1": with_marks(window=25, w=1.0),
-    "gain only": with_gain(1e12),
-    "gain only, shrink 3": with_gain(1e12, shrink=3),
-    "default + 0.1 gain": with_gain(0.1),
-    "default + 0.3 gain": with_gain(0.3),
-    "default + 1 gain": with_gain(1.0),
-    "default + 1 gain, shrink 3": with_gain(1.0, shrink=3),
-    "default + 3 gain": with_gain(3.0),
     "default (SPEC + mirror-pooled rates)": rule_default,
     "SPEC three terms": weighted(wf=0),
     "rates only": weighted(0, 0, 0, 0.5),

@@ -77,14 +77,19 @@ def mirror_pooled(counts: np.ndarray) -> np.ndarray:
     return np.asarray(counts) + mirror_image(counts)
 
 
+def mean_gains(gain: np.ndarray, count: np.ndarray) -> np.ndarray:
+    """(256, 8) float: each pair's mean gain ``gain`` / ``count``; a pair never measured: the mean of all."""
+    gain, count = np.asarray(gain, dtype=np.float64), np.asarray(count, dtype=np.float64)
+    return np.where(count > 0, gain / np.maximum(count, 1.0), gain.sum() / max(count.sum(), 1.0))
+
+
 def progress_codes(codes: np.ndarray, gain: np.ndarray, count: np.ndarray, weight: float) -> np.ndarray:
     """The rate codes with each pair's *progress deficit* added (docs/online.md, round 18):
     code + round(``weight`` RATE_ONE / (W_FAIL D PROGRESS_STEPS) (g_best(s) - g(s, a))), clipped to
     0..RATE_ONE, where g is the pair's mean gain towards the ball over the PROGRESS_STEPS steps after
     it (``gain`` / ``count``; a pair never measured: the mean of all) and g_best(s) the best of its
     state's eight. In the fitness the deficit weighs ``weight`` / (N D PROGRESS_STEPS) per mm."""
-    gain, count = np.asarray(gain, dtype=np.float64), np.asarray(count, dtype=np.float64)
-    mean = np.where(count > 0, gain / np.maximum(count, 1.0), gain.sum() / max(count.sum(), 1.0))
+    mean = mean_gains(gain, count)
     per_mm = weight * RATE_ONE / (W_FAIL * MAX_MOTION_DISTANCE_MM * PROGRESS_STEPS)
     deficit = mean.max(axis=1, keepdims=True) - mean
     return np.clip(np.floor(np.asarray(codes, dtype=np.float64) + per_mm * deficit + 0.5), 0,
