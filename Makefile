@@ -9,7 +9,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 BACKEND ?= reference
-# Every target runs the console script `ehw` (cosim/cli.py); the variables become its options, and
+# Every target runs the console script `ehw` (cosim/cli/main.py); the variables become its options, and
 # the defaults of the unset ones are ehw's own (`ehw sim --help`), so `make sim BACKEND=cocotb` and
 # `ehw sim --backend cocotb` run the same simulator.
 EHW    := $(VENV)/bin/ehw

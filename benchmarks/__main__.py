@@ -36,8 +36,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
 
 def check_args(args) -> None:
     """The modules named and the figures file, checked before any benchmark runs."""
-    from cosim.errors import UserError
-    from cosim.runs import read_json_object
+    from base.errors import UserError
+    from base.files import read_json_object
 
     names = _names()
     unknown = set(args.only) - set(names)
@@ -54,7 +54,7 @@ def check_args(args) -> None:
 
 def run_from_args(args, folder: Path) -> int:
     """Run the modules of checked ``args``; write ``folder/bench.json`` and merge into --figures."""
-    from cosim.runs import atomic_write_text, merge_json
+    from base.files import atomic_write_text, merge_json
 
     figures = {}
     for name in args.only or _names():
@@ -72,9 +72,31 @@ def run_from_args(args, folder: Path) -> int:
     return 0
 
 
-if __name__ == "__main__":  # ``python -m benchmarks`` is ``ehw bench``
-    import sys
+def main(argv=None) -> int:
+    """``ehw bench`` (and ``python -m benchmarks``): the exit status; a user error is one line."""
+    from base.errors import ArgumentParser, run_main
+    from base.options import PROG, HelpFormatter, add_common
+    from base.runs import open_run
 
-    from cosim.cli import main
+    def _main(argv) -> int:
+        parser = ArgumentParser(prog=f"{PROG} bench", formatter_class=HelpFormatter,
+                                description="speed figures -> results/bench/<date>-<time>/bench.json, "
+                                            "merged into results/bench.json")
+        add_arguments(parser)
+        add_common(parser, seed=False, resume=False, quiet=False, config=False)  # --force
+        args = parser.parse_args(argv)
+        from cosim.cli.options import resolve_hdl_settings
 
-    raise SystemExit(main(["bench", *sys.argv[1:]]))
+        resolve_hdl_settings(argparse.Namespace(backend="cocotb"))  # the environment's values checked first
+        check_args(args)
+        with open_run(args.out, RESULTS.parent / "bench", force=args.force, checkpoint=None,
+                      markers=("bench.json",)) as run_dir:
+            run_from_args(args, run_dir.path)
+            run_dir.remove_stale()
+        return 0
+
+    return run_main(_main, argv)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -11,7 +11,7 @@
   runs (the board's normal mode); ``..._sequential``: rows first, then the evaluation.
   Measured in Amaranth's simulator.
 - ``evaluator_ehw_evals_per_s``: controllers per second of the EHW evaluator in SystemTop (the
-  streamer's exact cycle model, ``cosim.hardware_time.stream_cycles``, population 500 on 100
+  streamer's exact cycle model, ``cosim.boards.hardware_time.stream_cycles``, population 500 on 100
   states) at the measured Fmax of its FPGA build (``..._clock``: which build, from
   results/fpga.json, or the named 12 MHz default without one); ``..._single_buffered`` the same
   for the two-iCEBreaker evaluator board (rows first, then the evaluation) at its own build's Fmax.
@@ -96,7 +96,7 @@ def hardware_figures(rng) -> dict:
             margin = 2 * n + 60 - per_controller
             worst_margin = margin if worst_margin is None else min(worst_margin, margin)
             sink.append(per_controller / n)
-    from cosim.hardware_time import measured_clock, stream_cycles
+    from cosim.boards.hardware_time import measured_clock, stream_cycles
 
     n_states = 100
     hz, source = measured_clock()

@@ -82,8 +82,8 @@ if cocotb is not None:
     async def throughput(dut):
         from cocotb.task import bridge
 
-        from cosim.amaranth_backend import HDLControllerBoard, HDLEvaluatorBoard
-        from cosim.cocotb_backend import CocotbSystem
+        from cosim.boards.amaranth_backend import HDLControllerBoard, HDLEvaluatorBoard
+        from cosim.boards.cocotb_backend import CocotbSystem
 
         system = CocotbSystem(dut)
         await system.start()
@@ -94,8 +94,8 @@ if cocotb is not None:
 
 
 def cocotb_figures(simulator: str = "icarus") -> dict:
-    from cosim.cocotb_launch import write_system_verilog
-    from cosim.cocotb_run import REPO_ROOT, run_cocotb
+    from cosim.launch.cocotb_sim import write_system_verilog
+    from cosim.boards.cocotb_run import REPO_ROOT, run_cocotb
 
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "bench.json"
@@ -107,7 +107,7 @@ def cocotb_figures(simulator: str = "icarus") -> dict:
 
 
 def amaranth_figures() -> dict:
-    from cosim.amaranth_backend import AmaranthSystem, HDLControllerBoard, HDLEvaluatorBoard
+    from cosim.boards.amaranth_backend import AmaranthSystem, HDLControllerBoard, HDLEvaluatorBoard
 
     system = AmaranthSystem()
     controller = HDLControllerBoard(system, check=False)
@@ -116,7 +116,7 @@ def amaranth_figures() -> dict:
 
 
 def reference_figures() -> dict:
-    from cosim.boards import make_boards
+    from cosim.boards.registry import make_boards
 
     model, pop, steps = _workload()
     _, evaluator = make_boards("reference")

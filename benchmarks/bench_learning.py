@@ -41,7 +41,7 @@ def models():
 
 
 def host_phase_s(model, repeats: int = 3) -> float:
-    from cosim.online import OnlineConfig
+    from cosim.online.run import OnlineConfig
     from ga.evaluator import evaluate_population, fitness
     from ga.evolution import GeneticAlgorithm
 

@@ -39,7 +39,7 @@ except ImportError:  # pragma: no cover
 
 def _measure(line, now) -> dict:
     """The workload (in cocotb's bridge thread); ``now()`` gives the simulated time in s."""
-    from cosim.link_host import LinkClient
+    from cosim.link.host import LinkClient
 
     rng = np.random.default_rng(2026)
     client = LinkClient(line)
@@ -83,7 +83,7 @@ if cocotb is not None:
         from cocotb.task import bridge, resume
         from cocotb.utils import get_sim_time
 
-        from cosim.uart_backend import host_timeout_s, start_top
+        from cosim.link.simulated import host_timeout_s, start_top
 
         baud = float(os.environ.get("EHW_BAUD") or BAUD)
         line = await start_top(dut, baud, host_timeout_s(baud, P_MAX), "hdl")
@@ -96,8 +96,8 @@ if cocotb is not None:
 
 
 def run() -> dict:
-    from cosim.cocotb_run import REPO_ROOT, SIM_BUILD, run_cocotb
-    from cosim.uart_backend import TOPLEVEL, write_link_verilog
+    from cosim.boards.cocotb_run import REPO_ROOT, SIM_BUILD, run_cocotb
+    from cosim.launch.uart_sim import TOPLEVEL, write_link_verilog
     from ga.genome import GENOME_BITS
 
     baud = float(os.environ.get("EHW_BAUD") or BAUD)

@@ -35,7 +35,7 @@ def _seeds(text: str) -> list[int]:
 
 
 def run_one(seed: int, ga: str, max_interactions: int) -> dict:
-    from cosim.online import OnlineConfig, make_run
+    from cosim.online.run import OnlineConfig, make_run
 
     t0, c0 = time.perf_counter(), time.process_time()
     run = make_run(OnlineConfig(seed=seed, ga=ga, max_interactions=max_interactions), "reference")

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from cosim.online import OnlineConfig, make_run
+from cosim.online.run import OnlineConfig, make_run
 
 DATA = Path(__file__).resolve().parent / "data"
 SIZES = (100, 167)

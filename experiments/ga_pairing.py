@@ -21,8 +21,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks.bench_learning import models  # noqa: E402
-from cosim.learning_phase import hardware_ga_config, hardware_seed  # noqa: E402
-from cosim.online_config import OnlineConfig  # noqa: E402
+from cosim.online.learning_phase import hardware_ga_config, hardware_seed  # noqa: E402
+from cosim.online.config import OnlineConfig  # noqa: E402
 from experiments.online_table import seed_range  # noqa: E402
 from ga import hardware_ga as hg  # noqa: E402
 from ga.evaluator import EvalResult, evaluate_population, fitness  # noqa: E402

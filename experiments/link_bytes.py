@@ -1,6 +1,6 @@
 """What crosses the host link in one lifetime: `--ga hardware` against the host GA, both on the
 `uart` backend (the board top in Verilator over the simulated line), from the link's counters
-(`out/link.json`: `cosim.link_host.LinkStats`, per command).
+(`out/link.json`: `cosim.link.host.LinkStats`, per command).
 
     nice -n 10 .venv/bin/python experiments/link_bytes.py [--out build/experiments/link_bytes] [--ga hardware,host]
 
@@ -18,7 +18,7 @@ import resource
 import time
 from pathlib import Path
 
-from cosim.online import OnlineConfig
+from cosim.online.run import OnlineConfig
 
 SHORT = dict(seed=1, arena="one_obstacle", n_targets=2, population=6, tournament=2, lanes=2,
              generations_per_phase=2)
@@ -30,7 +30,7 @@ def _cpu_s() -> float:
 
 
 def run(ga: str, out: Path) -> dict:
-    from cosim.uart_backend import run_online_uart
+    from cosim.launch.uart_sim import run_online_uart
 
     config = OnlineConfig(ga=ga, **SHORT)
     cpu, wall = _cpu_s(), time.perf_counter()

@@ -4,7 +4,7 @@
                                                     [--max-leg-steps L] [--all-legs]
 
 For each noise seed the best controller of the summary drives the noisy world (DEFAULT_NOISE)
-through the course until its first crash or leg time-out (as `cosim.offline.transfer`). For the
+through the course until its first crash or leg time-out (as `cosim.offline.run.transfer`). For the
 failing step it prints: the target count, the leg's step, the state sensed (and the state a
 noise-free sensor would have given at that pose: a difference is an IR false negative/positive),
 the motion, and the clearance (mm from the bumper to the nearest obstacle) before the motion.
@@ -12,7 +12,7 @@ Then a tally of the failing (state, motion) pairs, the legs where runs failed, a
 failures followed a sensing error.
 
 ``--all-legs``: a failure ends only its leg (the robot goes on to the next leg's pose, as the
-noisy stage of `cosim.offline_noisy` drives), so every run tries all 64 legs and the tally counts
+noisy stage of `cosim.offline.noisy` drives), so every run tries all 64 legs and the tally counts
 every failure mode of the controller, not only the first of each run; it also prints the failure
 rate per leg, from which P(64 clean legs) = (1 - rate)^64 follows.
 """

@@ -19,7 +19,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from cosim.offline_noisy import TRANSFER_TRIALS, _noisy_world, transfer  # noqa: E402
+from cosim.offline.noisy import TRANSFER_TRIALS, _noisy_world, transfer  # noqa: E402
 from sim_world.baseline import baseline_table  # noqa: E402
 from sim_world.course import run_course  # noqa: E402
 

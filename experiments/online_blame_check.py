@@ -17,7 +17,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from cosim.online import OnlineConfig, OnlineRun, make_run  # noqa: E402
+from cosim.online.run import OnlineConfig, OnlineRun, make_run  # noqa: E402
 from experiments.online_round7 import cycle_pairs  # noqa: E402
 from ga.motions import OBSTACLE_MASK  # noqa: E402
 

@@ -29,8 +29,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-import cosim.failures  # noqa: E402
-from cosim.online import OnlineConfig, make_run  # noqa: E402
+import cosim.online.failures  # noqa: E402
+from cosim.online.run import OnlineConfig, make_run  # noqa: E402
 from experiments.online_round7 import parse_kv  # noqa: E402
 from ga.motions import MOTION_ROTATION_DEG, Motion  # noqa: E402
 from sim_world.baseline import baseline_table  # noqa: E402
@@ -43,7 +43,7 @@ def parse_seeds(text: str) -> range:
     return range(int(first), int(last or first) + 1)
 
 
-class PoseCycles(cosim.failures.Cycles):
+class PoseCycles(cosim.online.failures.Cycles):
     """A cycle stop only when the round's commanded net rotation is within ``tol_deg`` of 0."""
 
     tol_deg = 1.0
@@ -61,7 +61,7 @@ class PoseCycles(cosim.failures.Cycles):
 def with_pose_cycles(run, tol_deg: float):
     """Swap ``run``'s cycle detector for a PoseCycles with the same k and radius."""
     for i, d in enumerate(run.detectors):
-        if isinstance(d, cosim.failures.Cycles):
+        if isinstance(d, cosim.online.failures.Cycles):
             run.detectors[i] = PoseCycles(d.k, d.radius_mm)
             run.detectors[i].tol_deg = tol_deg
     return run

@@ -28,8 +28,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from cosim.checkpoint import read_checkpoint  # noqa: E402
-from cosim.online import CHECKPOINT_KIND, OnlineConfig, make_run  # noqa: E402
+from base.checkpoint import read_checkpoint  # noqa: E402
+from cosim.online.run import CHECKPOINT_KIND, OnlineConfig, make_run  # noqa: E402
 from ga.motions import MIRROR_MOTION, MIRROR_STATE, N_MOTIONS, OBSTACLE_MASK  # noqa: E402
 from sim_world.course import Course  # noqa: E402
 from sim_world.world import DEFAULT_NOISE, World  # noqa: E402

@@ -20,7 +20,7 @@ lifetime). New here, host side:
 - variant ``failrate``: ``w_fail`` / N times the summed failure rates of the controller's motions
   in the obstacle states of S is subtracted from SPEC section 7's fitness (a per-(state, motion)
   weight table, the shape of the distance term, so an evaluator board could hold it in a RAM).
-- variant ``bandit``: the escape after a loop stop or time-out (``cosim.download``) picks, among
+- variant ``bandit``: the escape after a loop stop or time-out (``cosim.online.download``) picks, among
   the motions the population offers in the blamed state other than the blamed one, the one with
   the lowest failure rate, and downloads the fittest individual choosing it (instead of the
   fittest individual choosing any other motion). ``--param bandit=1`` adds it to ``failrate``.
@@ -43,8 +43,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-import cosim.online as online_mod  # noqa: E402
-from cosim.download import choose_download  # noqa: E402
+import cosim.online.run as online_mod  # noqa: E402
+from cosim.online.download import choose_download  # noqa: E402
 from experiments.online_round6 import cell  # noqa: E402
 from experiments.online_round7 import rows_by_variant  # noqa: E402
 from experiments.online_round8 import main as round8_main  # noqa: E402

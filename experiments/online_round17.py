@@ -20,7 +20,7 @@ main code's mirror-pooled counts (``ga.fail_rates.mirror_pooled``), then
   visited) ** ``visit_gamma``, clipped to 0..255: the rate term weighs where the robot spends its
   steps (0: every state of S once, the main code);
 - ``mark_cycle`` = 1: a cycle stop marks the pairs of the cycle that stopped the leg
-  (``cosim.failures.Cycles``), not the last ``HORIZON`` pairs (the approach to the cycle did not
+  (``cosim.online.failures.Cycles``), not the last ``HORIZON`` pairs (the approach to the cycle did not
   loop); ``crash_horizon`` = K > 0: a crash marks only its last K pairs (0: ``HORIZON``);
 - ``credit`` = c: when a leg reaches its target, each of its last ``HORIZON`` pairs counts c extra
   executions without failure (they got the robot there); ``prior_code`` (round 15's parameter):

@@ -34,7 +34,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-import cosim.online as online_mod  # noqa: E402
+import cosim.online.run as online_mod  # noqa: E402
 from experiments.online_round8 import main as round8_main  # noqa: E402
 from experiments.online_round14 import seed_table  # noqa: E402
 from experiments.online_round17 import DEFAULT_PARAMS as R17_PARAMS  # noqa: E402
@@ -200,7 +200,7 @@ class Round18(Round17):
 
     def oracle_download(self, population, fitness, blamed=None, reflex=True):
         """The download by look-ahead (see the module docstring); returns (index, escaped) as
-        ``cosim.download.choose_download``. Index -1: keep the running controller."""
+        ``cosim.online.download.choose_download``. Index -1: keep the running controller."""
         default, escaped = self.plain_download(population, fitness, blamed, reflex)
         tables = truth_tables(population, reflex=reflex)
         order = np.argsort(-fitness, kind="stable")

@@ -31,9 +31,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-import cosim.online as online_mod  # noqa: E402
-from cosim.online import make_run  # noqa: E402
-from cosim.online_config import OnlineConfig  # noqa: E402
+import cosim.online.run as online_mod  # noqa: E402
+from cosim.online.run import make_run  # noqa: E402
+from cosim.online.config import OnlineConfig  # noqa: E402
 from experiments.online_round8 import seeds_of  # noqa: E402
 from experiments.online_round18 import DEFAULT_PARAMS, Round18  # noqa: E402
 from ga.evaluator import evaluate_tables  # noqa: E402

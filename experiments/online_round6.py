@@ -5,7 +5,7 @@ phase, screened on a few seeds, one lifetime at a time.
     python experiments/online_round6.py closest 1-5
     python experiments/online_round6.py --table build/experiments/round6.jsonl   # the Markdown table
 
-A variant is the current ``cosim.online.OnlineRun`` (the defaults of ``OnlineConfig``, or the
+A variant is the current ``cosim.online.run.OnlineRun`` (the defaults of ``OnlineConfig``, or the
 ``--set`` fields) with one host-side hook changed: which individual is downloaded, what the GA is
 told. Variants that were adopted became ``OnlineConfig`` options; the others live only here.
 Each lifetime appends one JSON line (figures, phase reasons, interactions lost in failed
@@ -27,7 +27,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from cosim import online as online_mod  # noqa: E402
-from cosim.online import OnlineConfig, OnlineRun, make_run  # noqa: E402
+from cosim.online.run import OnlineConfig, OnlineRun, make_run  # noqa: E402
 from ga.motions import OBSTACLE_MASK  # noqa: E402
 from ga.truth_table import truth_tables  # noqa: E402
 

@@ -7,7 +7,7 @@ seeds, one lifetime at a time.
     python experiments/online_round7.py default 1-8
     python experiments/online_round7.py --table build/experiments/round7.jsonl   # the Markdown table
 
-A variant is the current ``cosim.online.OnlineRun`` (the defaults of ``OnlineConfig``, or the
+A variant is the current ``cosim.online.run.OnlineRun`` (the defaults of ``OnlineConfig``, or the
 ``--set`` fields) with the learning phase's fitness changed on the host side: the board's counts
 (crashes, loops, distance; SPEC section 7) are untouched, and the host subtracts a penalty it
 computes from its mirror of the world model (the same entries the board holds) and the
@@ -59,8 +59,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from cosim import online as online_mod  # noqa: E402
-from cosim.failures import Cycles  # noqa: E402
-from cosim.online import OnlineConfig, OnlineRun, make_run  # noqa: E402
+from cosim.online.failures import Cycles  # noqa: E402
+from cosim.online.run import OnlineConfig, OnlineRun, make_run  # noqa: E402
 from experiments.online_round6 import cell, lost, seeds_of  # noqa: E402
 from ga.motions import OBSTACLE_MASK  # noqa: E402
 from ga.truth_table import truth_tables  # noqa: E402
@@ -106,7 +106,7 @@ def trace_ends(tables: np.ndarray, model, starts: np.ndarray, horizon: int) -> n
 
 def cycle_pairs(track) -> list:
     """The (state, motion) pairs of the shortest simple cycle (2-8 pairs) back to the current
-    state, as ``cosim.failures.Cycles`` finds it; [] if none."""
+    state, as ``cosim.online.failures.Cycles`` finds it; [] if none."""
     w, now = list(track.pairs), track.state
     for p in range(2, min(len(w), 8) + 1):
         if w[-p][0] == now and len({s for s, _ in w[-p:]}) == p:

@@ -39,8 +39,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from cosim.failures import Cycles, blame  # noqa: E402
-from cosim.online import OnlineConfig, make_run  # noqa: E402
+from cosim.online.failures import Cycles, blame  # noqa: E402
+from cosim.online.run import OnlineConfig, make_run  # noqa: E402
 from experiments.online_round6 import lost, seeds_of  # noqa: E402
 from experiments.online_round7 import DEFAULT_PARAMS as R7_PARAMS  # noqa: E402
 from experiments.online_round7 import (  # noqa: E402
@@ -120,7 +120,7 @@ class Round8(Round7):
 
 
 def detected_cycle(track, radius_mm: float) -> list:
-    """The (state, motion) pairs of the cycle ``cosim.failures.Cycles`` (one round) finds, in
+    """The (state, motion) pairs of the cycle ``cosim.online.failures.Cycles`` (one round) finds, in
     order from the current state; [] if none."""
     probe = Cycles(1, radius_mm)
     return probe.cycle if probe.observe(track) else []

@@ -47,7 +47,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from cosim.failures import Cycles  # noqa: E402
+from cosim.online.failures import Cycles  # noqa: E402
 from experiments.online_round7 import AdaptiveCycles  # noqa: E402
 from experiments.online_round7 import VARIANTS as R7_VARIANTS  # noqa: E402
 from experiments.online_round8 import DEFAULT_PARAMS as R8_PARAMS  # noqa: E402

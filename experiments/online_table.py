@@ -5,7 +5,7 @@
     python experiments/online_table.py round3 --seeds 1 --budget 500   # a smoke run (seconds)
     python experiments/online_table.py --list                       # the tables and their rows
 
-Each run is ``cosim.online.make_run(OnlineConfig(seed=S, max_interactions=BUDGET, **row)).run()``
+Each run is ``cosim.online.run.make_run(OnlineConfig(seed=S, max_interactions=BUDGET, **row)).run()``
 on the reference boards (what the rounds ran from scripts under the ignored build/ folder); a
 cell is the interactions to 64 targets, or "t @ B" when the budget B ran out first (counted as B
 in the medians, so those are lower bounds). Besides the table the script writes one JSON line
@@ -33,7 +33,7 @@ from collections import Counter
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
-# The commit that still holds every dropped option (cosim/online.py before the lean loop), and them.
+# The commit that still holds every dropped option (cosim/online/run.py before the lean loop), and them.
 DROPPED_AT = "af766a7"
 DROPPED = {"blame_phase_only", "loop_key", "loop_still_mm", "loop_patience", "loop_relax", "relax_window",
            "escape_memory", "escape_spread", "escape_rewrite", "escape_credit", "loop_penalty",
@@ -119,7 +119,7 @@ def seed_range(text: str) -> list[int]:
 
 
 def known_fields() -> set[str]:
-    from cosim.online import OnlineConfig
+    from cosim.online.run import OnlineConfig
 
     return {f.name for f in dataclasses.fields(OnlineConfig)}
 
@@ -136,7 +136,7 @@ def rounds_1_7(options: dict) -> dict:
 
 def lifetime(task: tuple[str, dict, int, int]) -> dict:
     """One run of a row: the figures and how its legs were stopped."""
-    from cosim.online import OnlineConfig, make_run
+    from cosim.online.run import OnlineConfig, make_run
 
     label, options, seed, budget = task
     run = make_run(OnlineConfig(seed=seed, max_interactions=budget, **rounds_1_7(options))).run()

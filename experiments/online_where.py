@@ -4,10 +4,10 @@ transitions of the paper's table.
 
     python experiments/online_where.py [--seed 1] [--budget 20000] [--set field=value ...]
 
-Runs ``cosim.online.make_run(OnlineConfig(seed=S, max_interactions=B, **settings))`` on the
+Runs ``cosim.online.run.make_run(OnlineConfig(seed=S, max_interactions=B, **settings))`` on the
 reference boards and prints one JSON object:
 
-- ``where_interactions_go``: the summary's breakdown (``cosim.online_report.interaction_breakdown``);
+- ``where_interactions_go``: the summary's breakdown (``cosim.online.report.interaction_breakdown``);
 - ``clean``: the steps of each leg after its last failure, summed;
 - ``loops``: loop stops, and how many ran again a loop met before (the same obstacle (state,
   motion) pairs, ``last_cycle`` below) in the lifetime and on the same leg, with the interactions
@@ -27,8 +27,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from cosim.online import OnlineConfig, make_run  # noqa: E402
-from cosim.online_report import interaction_breakdown  # noqa: E402
+from cosim.online.run import OnlineConfig, make_run  # noqa: E402
+from cosim.online.report import interaction_breakdown  # noqa: E402
 from ga.motions import OBSTACLE_MASK  # noqa: E402
 
 

@@ -5,7 +5,7 @@
 
 Needs the optional extra (`make rl`). For DQN and PPO and each reward (shaped, unshaped) it runs
 one lifetime (``peers.deep.run_deep_lifetime``, the protocol of `make compare`, through
-``cosim.compare.run_task``: the same task, so the same cache key) per point of ``GRID`` and per
+``cosim.compare.run.run_task``: the same task, so the same cache key) per point of ``GRID`` and per
 seed of ``peers.tabular.TUNING_SEEDS`` (1001-1003), through the sweep executor (cached: an
 interrupted tuning resumes), and picks the point of the lowest median interactions to 64 targets
 as experiments/tune_tabular.py does (a capped lifetime counts as its cap; ties: the lower mean).
@@ -22,8 +22,8 @@ import json
 import time
 from pathlib import Path
 
-from cosim.compare import run_task
-from cosim.sweep import Cache, executor, run_sweep
+from cosim.compare.run import run_task
+from cosim.compare.sweep import Cache, executor, run_sweep
 from peers.deep import HYPER
 from peers.lifetime import MAX_INTERACTIONS, SHAPINGS
 from peers.tabular import TUNING_SEEDS

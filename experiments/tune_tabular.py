@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cosim.sweep import Cache, executor, run_sweep
+from cosim.compare.sweep import Cache, executor, run_sweep
 from peers.lifetime import MAX_INTERACTIONS, SHAPINGS, run_lifetime
 from peers.tabular import LEARNERS, TUNING_SEEDS, LearnerConfig
 

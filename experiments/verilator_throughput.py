@@ -65,8 +65,8 @@ if cocotb is not None:
     async def throughput(dut):
         from cocotb.task import bridge
 
-        from cosim.amaranth_backend import HDLEvaluatorBoard
-        from cosim.cocotb_backend import CocotbSystem
+        from cosim.boards.amaranth_backend import HDLEvaluatorBoard
+        from cosim.boards.cocotb_backend import CocotbSystem
 
         system = CocotbSystem(dut)
         await system.start()
@@ -81,9 +81,9 @@ def main(argv=None) -> int:
     parser.add_argument("--populations", type=int, default=10)
     args = parser.parse_args(argv)
     sys.path.insert(0, str(ROOT))
-    from cosim.cocotb_backend import CLOCK_INSIDE_ENV
-    from cosim.cocotb_launch import CLOCKED_TOPLEVEL, TOPLEVEL, write_system_verilog
-    from cosim.cocotb_run import SIM_BUILD, run_cocotb
+    from cosim.boards.cocotb_backend import CLOCK_INSIDE_ENV
+    from cosim.launch.cocotb_sim import CLOCKED_TOPLEVEL, TOPLEVEL, write_system_verilog
+    from cosim.boards.cocotb_run import SIM_BUILD, run_cocotb
 
     inside = args.clock == "inside"
     name = f"verilator_throughput_{args.clock}"

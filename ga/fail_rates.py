@@ -13,7 +13,7 @@ did:
   pair is (failed + prior) / (executed + 1) with prior = 0.1 for a pair never executed, written as
   an 8-bit code in units of 1 / ``RATE_ONE``: code = round((RATE_ONE failed + PRIOR_CODE) /
   (executed + 1)), 0..250. The host writes the codes that changed to the board before a learning
-  phase (``write_rates`` of ``cosim.boards.EvaluatorBoard``); a board cleared holds ``PRIOR_CODE``
+  phase (``write_rates`` of ``cosim.boards.interfaces.EvaluatorBoard``); a board cleared holds ``PRIOR_CODE``
   everywhere.
 - **Mirror pooling** (:func:`mirror_pooled`, ``FailureMarks(mirror=True)``, the on-line default
   since round 16). The robot is left-right symmetric (``ga.motions.MIRROR_STATE``,

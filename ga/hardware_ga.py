@@ -42,7 +42,7 @@ Child ``i`` is bred and evaluated by lane ``i % lanes`` in slot ``i // lanes``.
   holds a rate RAM per lane, ``PRIOR_CODE`` everywhere after reset or CLEAR), and scored with
   :func:`score`.
 
-The escape (the on-line run's download after a time-out or loop, ``cosim.online``): given a
+The escape (the on-line run's download after a time-out or loop, ``cosim.online.run``): given a
 blamed (state, motion) with an obstacle bit in the state, the engine also tracks the first child
 of highest score whose array motion in that state (``ga.operators.motion_in_state``: the rows are
 checked one per cycle as they stream into the lane) differs from the blamed motion; `learn`

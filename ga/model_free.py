@@ -3,7 +3,7 @@
 Each controller drives the noise-free world from the arena's start pose (the upper-left corner)
 through the fixed sequence of 64 relocation poses, until it crashes, a leg exceeds
 ``max_leg_steps``, or it has reached ``n_targets`` targets (the off-line runner drives it:
-``cosim.offline.evaluate``). Then
+``cosim.offline.run.evaluate``). Then
 
     fitness = R1 + 0.5 (1 - D / L) + 0.5 (1 - steps / MaxSteps)
 

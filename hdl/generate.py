@@ -13,7 +13,7 @@ from pathlib import Path
 
 from amaranth.back import verilog
 
-from cosim.runs import atomic_write_text
+from base.files import atomic_write_text
 
 # (file stem = Verilog module name, "module:factory") -- the factory takes no argument.
 BLOCKS = {
@@ -77,7 +77,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
 
 
 def run_from_args(args) -> int:
-    from cosim.errors import UserError
+    from base.errors import UserError
 
     unknown = [b for b in args.blocks if b not in BLOCKS]
     if unknown:

@@ -1,6 +1,6 @@
 """The learning system top: the system top's controller board beside the learning engine.
 
-The top of the cocotb learning board (``cosim.cocotb_learning``, ``--ga hardware`` on the
+The top of the cocotb learning board (``cosim.boards.cocotb_learning``, ``--ga hardware`` on the
 Verilog): one ``hdl.system_top.SystemTop`` (its ports unchanged, so ``SystemHost`` drives the
 controller EHW as on the system top; its evaluator stays unused, the engine replaces it) and one
 ``hdl.learner.Learner`` whose ports are the top's ports prefixed ``lrn_`` (``lrn_model__state``,

@@ -1,6 +1,6 @@
 """The host link's protocol (SPEC section 8): a framed command protocol over the 8N1 UART of ``hdl.uart``.
 
-This module owns the protocol: the definitions the host imports (``cosim.link_host``) and the
+This module owns the protocol: the definitions the host imports (``cosim.link.host``) and the
 framing gateware of the board tops (:mod:`hdl.link_tops`), as a Glasgow applet's component owns
 its commands. Nothing here is re-typed on the host side.
 

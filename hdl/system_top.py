@@ -1,6 +1,6 @@
 """Both EHW boards in one top, plus a population streamer: the HDL side of the co-simulation.
 
-``SystemTop`` is what the HDL backends of ``cosim.boards`` drive (``cosim.hdl_host``): in
+``SystemTop`` is what the HDL backends of ``cosim.boards.registry`` drive (``cosim.hdl_host``): in
 Amaranth's simulator (``--backend amaranth``) and, converted to Verilog (``system_top.v``), in
 Icarus under cocotb (``--backend cocotb``). It holds
 

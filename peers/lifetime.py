@@ -45,7 +45,7 @@ MAX_INTERACTIONS = 100_000  # as the on-line run's cap (OnlineConfig.max_interac
 
 def seeds(seed: int) -> tuple[int, np.random.Generator]:
     """The world's noise seed and the learner's generator for run ``seed``: the on-line run's
-    scheme (``cosim.online``: ``SeedSequence(seed).spawn(2)``, world first), so the world of
+    scheme (``cosim.online.run``: ``SeedSequence(seed).spawn(2)``, world first), so the world of
     seed k draws its noise from the same stream in every method."""
     world_seq, learner_seq = np.random.SeedSequence(seed).spawn(2)
     return int(world_seq.generate_state(1)[0]), np.random.default_rng(learner_seq)

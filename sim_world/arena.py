@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cosim.errors import UserError
+from base.errors import UserError
 from sim_world.geometry import (
     Point,
     edges,

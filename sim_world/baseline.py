@@ -268,7 +268,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
 
 
 def run_from_args(args) -> int:
-    from cosim.runs import atomic_write_json
+    from base.files import atomic_write_json
 
     if args.tune:
         table = tune_table(baseline_table(), TUNING_RUNS, args.tune, np.random.default_rng(0), args.max_leg_steps,

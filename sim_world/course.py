@@ -9,7 +9,7 @@ rule is written: the on-line and off-line runs, the baseline and the Gymnasium e
 With ``skip_failed_legs`` a crash or a time-out ends only its leg: the leg counts as failed and the
 robot goes on to the next leg's pose as after a target, so a run tries all ``n_targets`` legs (or
 stops at ``max_failures`` failed legs). The off-line method's noisy stage scores controllers so
-(``cosim.offline_noisy``): the clean legs of one run vary less than the targets before a first
+(``cosim.offline.noisy``): the clean legs of one run vary less than the targets before a first
 crash.
 """
 

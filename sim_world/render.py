@@ -12,7 +12,7 @@ import argparse
 import math
 from pathlib import Path
 
-from cosim.runs import atomic_savefig
+from base.files import atomic_savefig
 from sim_world.arena import ARENAS, ROBOT_RADIUS_MM, Arena, load_arena
 
 

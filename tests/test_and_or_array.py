@@ -142,7 +142,7 @@ def _ports(verilog: str, module: str) -> dict[str, tuple[str, int]]:
 
 
 def test_generated_verilog_has_exactly_the_contract_ports(tmp_path):
-    from cosim.cli import main
+    from cosim.cli.main import main
 
     assert main(["verilog", "--out", str(tmp_path), "and_or_array"]) == 0  # what `make verilog` runs
     path = tmp_path / "and_or_array.v"

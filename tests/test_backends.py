@@ -2,7 +2,7 @@
 
 - The system top (controller EHW + evaluator EHW + population streamer) under cocotb on the
   shared evaluator cases and controller vectors (tests/cocotb_tb/tb_system.py).
-- The cycle model of a population stream (``cosim.hardware_time.stream_cycles``) against the
+- The cycle model of a population stream (``cosim.boards.hardware_time.stream_cycles``) against the
   simulated ``pop_cycles`` (Amaranth's simulator).
 - Equivalence: one short on-line run (one obstacle, 3 targets, population 16, the failure rates
   on: ``ga.fail_rates``, codes written to the evaluator at each failure) on the reference,
@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cosim.online import OnlineConfig, OnlineRun, make_run
+from cosim.online.run import OnlineConfig, OnlineRun, make_run
 
 TB_DIR = Path(__file__).resolve().parent / "cocotb_tb"
 
@@ -42,8 +42,8 @@ def comparable(summary: dict) -> dict:
 
 @pytest.fixture(scope="module")
 def reference_run():
-    from cosim.amaranth_backend import LoggedBoards
-    from cosim.boards import make_boards
+    from cosim.boards.amaranth_backend import LoggedBoards
+    from cosim.boards.registry import make_boards
 
     boards = LoggedBoards(*make_boards("reference"))
     run = OnlineRun(SHORT, boards.controller, boards.evaluator, backend="reference").run()
@@ -60,7 +60,7 @@ def amaranth_run():
 def amaranth_sampled_run():
     """Spot-check mode: the HDL evaluates 3 controllers of each population, checked against the
     reference, whose counts drive the GA."""
-    from cosim.amaranth_backend import make_amaranth_boards
+    from cosim.boards.amaranth_backend import make_amaranth_boards
 
     controller, evaluator = make_amaranth_boards(sample=3)
     run = OnlineRun(SHORT, controller, evaluator, backend="amaranth").run()
@@ -77,7 +77,7 @@ WORKER = os.environ.get("PYTEST_XDIST_WORKER", "main")
 
 @pytest.fixture(scope="module")
 def cocotb_run(tmp_path_factory):
-    from cosim.cocotb_launch import run_online_cocotb
+    from cosim.launch.cocotb_sim import run_online_cocotb
 
     out = tmp_path_factory.mktemp("cocotb_online")
     summary = run_online_cocotb(SHORT, out, build_name=f"system_top_online_test_icarus_{WORKER}")
@@ -86,7 +86,7 @@ def cocotb_run(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def cocotb_verilator_run(tmp_path_factory):
-    from cosim.cocotb_launch import run_online_cocotb
+    from cosim.launch.cocotb_sim import run_online_cocotb
 
     out = tmp_path_factory.mktemp("cocotb_verilator_online")
     summary = run_online_cocotb(SHORT, out, build_name=f"system_top_online_test_{WORKER}", simulator="verilator")
@@ -132,7 +132,7 @@ def test_verilator_is_identical_and_hdl_backends_count_the_same_cycles(amaranth_
         assert hw["evaluator_cycles_source"] == "simulated"
         assert hw["evaluator_cycles"] == hw["evaluator_cycles_model"] == ref["hardware"]["evaluator_cycles"]
     assert ref["hardware"]["evaluator_cycles_source"] == "model"
-    from cosim.hardware_time import measured_clock
+    from cosim.boards.hardware_time import measured_clock
 
     hz, source = measured_clock()  # results/fpga.json's Fmax after make bitstream, else 12 MHz
     for hw in (ama["hardware"], coco["hardware"], veri["hardware"], ref["hardware"]):
@@ -144,8 +144,8 @@ def test_stream_cycle_model_matches_the_hdl():
     import sys
 
     sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from cosim.amaranth_backend import AmaranthSystem
-    from cosim.hardware_time import stream_cycles
+    from cosim.boards.amaranth_backend import AmaranthSystem
+    from cosim.boards.hardware_time import stream_cycles
     from test_evaluator_cases import random_model, specific_rows
 
     system = AmaranthSystem()
@@ -164,14 +164,14 @@ def test_stream_cycle_model_matches_the_hdl():
 
 
 def test_stream_cycle_model_errors():
-    from cosim.hardware_time import stream_cycles
+    from cosim.boards.hardware_time import stream_cycles
 
     with pytest.raises(ValueError, match="-1"):
         stream_cycles(-1, 3)
 
 
 def test_cocotb_backend_outside_the_simulator_says_how_to_start_it():
-    from cosim.boards import make_boards
+    from cosim.boards.registry import make_boards
 
     with pytest.raises(RuntimeError, match="inside the simulator"):
         make_boards("cocotb")
@@ -179,9 +179,9 @@ def test_cocotb_backend_outside_the_simulator_says_how_to_start_it():
 
 @pytest.mark.cocotb
 def test_cocotb_system_top_matches_reference(tmp_path):
-    from cosim.cocotb_backend import P_MAX_ENV
-    from cosim.cocotb_launch import write_system_verilog
-    from cosim.cocotb_run import run_cocotb
+    from cosim.boards.cocotb_backend import P_MAX_ENV
+    from cosim.launch.cocotb_sim import write_system_verilog
+    from cosim.boards.cocotb_run import run_cocotb
 
     src = write_system_verilog(tmp_path, p_max=16)
     assert "initial \\$auto" in src.read_text()  # the time-0 fix (hdl.generate) found Yosys's trigger registers
@@ -196,8 +196,8 @@ def test_streamer_ignores_writes_and_go_while_busy():
     import sys
 
     sys.path.insert(0, str(Path(__file__).resolve().parent))
-    from cosim.amaranth_backend import AmaranthSystem
-    from cosim.hardware_time import stream_cycles
+    from cosim.boards.amaranth_backend import AmaranthSystem
+    from cosim.boards.hardware_time import stream_cycles
     from ga.evaluator import evaluate_population
     from hdl.system_top import genome_words, unpack_result
     from test_evaluator_cases import case_rates, random_model, rate_table, specific_rows
@@ -237,7 +237,7 @@ def test_streamer_ignores_writes_and_go_while_busy():
 
 
 def test_unknown_simulator_is_refused(monkeypatch):
-    from cosim.cocotb_run import SIM_ENV, run_cocotb, simulator_default
+    from cosim.boards.cocotb_run import SIM_ENV, run_cocotb, simulator_default
 
     monkeypatch.setenv(SIM_ENV, "modelsim")
     with pytest.raises(ValueError, match="modelsim"):

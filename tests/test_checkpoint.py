@@ -4,7 +4,7 @@ import json
 
 import pytest
 
-from cosim.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
+from base.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
 
 CONFIG = {"seed": 1, "population": 20, "arena": "default", "rates": (0.1, 0.2)}
 

@@ -1,7 +1,7 @@
 """`ehw`: one command line, runs that never lose or mix results, every bad input one `error:` line.
 
 One test per case of issue 15 (each failed before it: a traceback, a run that went ahead, a result
-overwritten), run in-process through ``cosim.cli.main`` in a temporary working directory.
+overwritten), run in-process through ``cosim.cli.main.main`` in a temporary working directory.
 """
 
 from __future__ import annotations
@@ -16,8 +16,8 @@ from pathlib import Path
 import pytest
 
 from conftest import REPO_ROOT
-from cosim.cli import main as ehw_main
-from cosim.runs import LATEST, RunLock
+from cosim.cli.main import main as ehw_main
+from base.runs import LATEST, RunLock
 
 TINY = ["--arena", "empty", "--targets", "1", "--population", "20", "--quiet", "--no-plots"]
 
@@ -53,18 +53,18 @@ def _one_error(status, err, *words):
 def test_help_lists_the_subcommands(ehw):
     status, out, _ = ehw("--help")
     assert status == 0 and "sim" in out
-    import cosim.cli
+    import cosim.cli.main
 
-    text = cosim.cli.build_parser().format_help()
+    text = cosim.cli.main.build_parser().format_help()
     for name in ("sim", "offline", "compare", "verilog", "bench", "arena", "baseline"):
         assert f"    {name} " in text, name
 
 
 def test_every_sim_option_has_help_and_its_default(ehw, capsys):
-    import cosim.cli
+    import cosim.cli.main
 
-    cosim.cli.build_parser()
-    sub = cosim.cli._SUBPARSERS["sim"]
+    cosim.cli.main.build_parser()
+    sub = cosim.cli.main._SUBPARSERS["sim"]
     for action in sub._actions:
         if action.option_strings and action.dest != "help":
             assert action.help, action.dest
@@ -74,7 +74,7 @@ def test_every_sim_option_has_help_and_its_default(ehw, capsys):
                  "--hdl-sample", "--waves", "--clock-hz"):
         assert flag in text, flag
     for name in ("offline", "baseline"):  # the shared flags, spelled the same
-        text = cosim.cli._SUBPARSERS[name].format_help()
+        text = cosim.cli.main._SUBPARSERS[name].format_help()
         assert "--out DIR" in text and "--config FILE" in text
 
 
@@ -82,7 +82,7 @@ def test_console_script_and_make_use_one_simulator(monkeypatch):
     """`ehw sim --backend cocotb` and `make sim BACKEND=cocotb` ran Icarus and Verilator."""
     import argparse
 
-    from cosim.cli import resolve_hdl_settings
+    from cosim.cli.main import resolve_hdl_settings
 
     monkeypatch.delenv("EHW_SIM", raising=False)
     monkeypatch.delenv("EHW_HDL_SAMPLE", raising=False)
@@ -158,7 +158,7 @@ def test_two_sim_processes_on_one_folder(tmp_path):
     """Two `ehw sim` on one --out at once: one runs, the other is refused (the folder and the
     other process named); without --out, both run, each in its own folder."""
     env = {**os.environ, "PYTHONPATH": str(REPO_ROOT)}
-    command = [sys.executable, "-m", "cosim.cli", "sim", *TINY]
+    command = [sys.executable, "-m", "cosim.cli.main", "sim", *TINY]
     procs = [subprocess.Popen(command + ["--out", "shared"], cwd=tmp_path, env=env, text=True,
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE) for _ in range(2)]
     procs += [subprocess.Popen(command + ["--seed", str(s)], cwd=tmp_path, env=env, text=True,
@@ -366,12 +366,12 @@ def test_offline_resume_keeps_the_run_options(ehw, tmp_path):
 def test_a_fresh_run_that_fails_leaves_no_folder(ehw, tmp_path, monkeypatch):
     assert ehw("sim", *TINY)[0] == 0
     before = (tmp_path / "results/model_based" / LATEST).resolve()
-    from cosim.boards import BackendUnavailable
+    from cosim.boards.interfaces import BackendUnavailable
 
     def unavailable(*args, **kwargs):
         raise BackendUnavailable("backend 'reference' is not available (a test)")
 
-    monkeypatch.setattr("cosim.online.make_boards", unavailable)
+    monkeypatch.setattr("cosim.online.run.make_boards", unavailable)
     _one_error(*ehw("sim", *TINY, "--seed", "2")[::2], "not available")
     assert [p for p in (tmp_path / "results/model_based").iterdir() if p.name != LATEST] == [before]
     assert (tmp_path / "results/model_based" / LATEST).resolve() == before

@@ -1,5 +1,5 @@
 """`ehw compare`, `ehw baseline`, `ehw arena` and `ehw bench` (issue 15, second round): one option
-table for `ehw compare` and `python -m cosim.compare`, every input checked before any work, and
+table for `ehw compare` and `python -m cosim.compare.run`, every input checked before any work, and
 run folders that keep every run (a fresh folder and `latest`; an `--out` holding a run refused).
 
 Each test failed before this round: compare passed its arguments through (no --config, no
@@ -20,7 +20,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from conftest import REPO_ROOT
-from cosim.runs import LATEST
+from base.runs import LATEST
 from test_cli import _arena_file, _one_error, ehw  # noqa: F401  (the fixture)
 
 # A comparison of a second or two: the baseline on one seed, Q-learning capped at 200 interactions.
@@ -36,10 +36,10 @@ def _runs(root: Path) -> list[Path]:
 
 
 def test_compare_help_shows_every_option_and_its_default(ehw):
-    import cosim.cli
+    import cosim.cli.main
 
-    cosim.cli.build_parser()
-    sub = cosim.cli._SUBPARSERS["compare"]
+    cosim.cli.main.build_parser()
+    sub = cosim.cli.main._SUBPARSERS["compare"]
     for action in sub._actions:
         if action.option_strings and action.dest != "help":
             assert action.help, action.dest
@@ -51,12 +51,12 @@ def test_compare_help_shows_every_option_and_its_default(ehw):
 
 
 def test_compare_has_one_option_table():
-    """`ehw compare` and `python -m cosim.compare` take the same options (one definition)."""
-    import cosim.cli
-    from cosim import compare
+    """`ehw compare` and `python -m cosim.compare.run` take the same options (one definition)."""
+    import cosim.cli.main
+    from cosim.compare import run as compare
 
-    cosim.cli.build_parser()
-    ehw_options = {a.dest for a in cosim.cli._SUBPARSERS["compare"]._actions}
+    cosim.cli.main.build_parser()
+    ehw_options = {a.dest for a in cosim.cli.main._SUBPARSERS["compare"]._actions}
     module_options = {a.dest for a in compare.build_parser()._actions}
     assert ehw_options - module_options == {"config"} and module_options <= ehw_options
 
@@ -167,7 +167,7 @@ def test_compare_resume_and_force(ehw, tmp_path):
 
 
 def test_an_interrupted_comparison_resumes_and_a_refused_one_leaves_nothing(ehw, tmp_path, monkeypatch):
-    import cosim.sweep
+    import cosim.compare.sweep
 
     root = tmp_path / "results/compare"
     assert ehw("compare", *SMALL)[0] == 0
@@ -176,20 +176,20 @@ def test_an_interrupted_comparison_resumes_and_a_refused_one_leaves_nothing(ehw,
     def unreachable(*args, **kwargs):
         raise ConnectionError("cannot reach the Dask scheduler at 'tcp://nowhere:1' (a test)")
 
-    real_executor, real = cosim.sweep.executor, cosim.sweep.run_sweep
-    monkeypatch.setattr(cosim.sweep, "executor", unreachable)
+    real_executor, real = cosim.compare.sweep.executor, cosim.compare.sweep.run_sweep
+    monkeypatch.setattr(cosim.compare.sweep, "executor", unreachable)
     _one_error(*ehw("compare", *SMALL, "--seeds", "2", "--cluster", "tcp://nowhere:1")[::2], "--cluster", "nowhere")
     assert _runs(root) == [done] and (root / LATEST).resolve() == done
-    monkeypatch.setattr(cosim.sweep, "executor", real_executor)
+    monkeypatch.setattr(cosim.compare.sweep, "executor", real_executor)
 
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(cosim.sweep, "run_sweep", interrupted)
+    monkeypatch.setattr(cosim.compare.sweep, "run_sweep", interrupted)
     assert ehw("compare", *SMALL, "--seeds", "2")[0] == 130
     stopped = (root / LATEST).resolve()
     assert stopped != done and (stopped / "config.toml").is_file() and not (stopped / "compare.json").exists()
-    monkeypatch.setattr(cosim.sweep, "run_sweep", real)
+    monkeypatch.setattr(cosim.compare.sweep, "run_sweep", real)
     assert ehw("compare", "--resume", "--quiet")[0] == 0  # the interrupted one, under its config
     assert json.loads((stopped / "compare.json").read_text())["seeds"] == [1, 2]
 
@@ -206,9 +206,9 @@ def test_compare_reuse_and_render_read_an_earlier_comparison(ehw, tmp_path):
 
 def test_python_m_cosim_compare_is_the_same_command_without_cosim_cli(tmp_path):
     """The lower-layer form: its own parser from the one option table, the same checks and
-    run folders, and no import of cosim.cli."""
-    code = ("import sys; from cosim import compare; status = compare.main(sys.argv[1:]); "
-            "assert 'cosim.cli' not in sys.modules, 'imported cosim.cli'; raise SystemExit(status)")
+    run folders, and no import of cosim.cli.main."""
+    code = ("import sys; from cosim.compare import run as compare; status = compare.main(sys.argv[1:]); "
+            "assert 'cosim.cli.main' not in sys.modules, 'imported cosim.cli.main'; raise SystemExit(status)")
     run = lambda *args: subprocess.run([sys.executable, "-c", code, *args], cwd=tmp_path, text=True,  # noqa: E731
                                        capture_output=True, env={"PYTHONPATH": str(REPO_ROOT), "PATH": "/usr/bin:/bin"})
     bad = run("--seeds", "0")
@@ -287,7 +287,7 @@ def test_bench_keeps_every_run_and_merges_into_results_bench_json(ehw, tmp_path,
 
 
 def test_two_merges_at_once_both_land(tmp_path):
-    from cosim.runs import merge_json
+    from base.files import merge_json
 
     path = tmp_path / "bench.json"
     threads = [threading.Thread(target=merge_json, args=(path, {f"k{i}": i})) for i in range(8)]
@@ -305,7 +305,7 @@ def test_two_merges_at_once_both_land(tmp_path):
 @given(value=st.recursive(st.one_of(st.none(), st.booleans(), st.integers(), st.floats(), st.text(max_size=5)),
                           lambda inner: st.lists(inner, max_size=3), max_leaves=6))
 def test_list_option_values_load_or_raise(value):
-    from cosim.config_file import ConfigFileError, check_value
+    from base.config_file import ConfigFileError, check_value
 
     try:
         got = check_value(value, list[str], "key 'limit_seeds'")
@@ -320,8 +320,8 @@ def test_list_option_values_load_or_raise(value):
     lambda inner: st.one_of(st.lists(inner, max_size=3), st.dictionaries(st.text(max_size=4), inner, max_size=3)),
     max_leaves=8).map(lambda v: json.dumps({"per_seed": v}))))
 def test_compare_report_loader_loads_or_raises(tmp_path_factory, text):
-    from cosim.compare_options import read_report
-    from cosim.errors import UserError
+    from cosim.compare.options import read_report
+    from base.errors import UserError
 
     path = tmp_path_factory.mktemp("cmp") / "compare.json"
     path.write_text(text)
@@ -335,8 +335,8 @@ def test_compare_report_loader_loads_or_raises(tmp_path_factory, text):
 @settings(max_examples=80, deadline=None)
 @given(items=st.lists(st.text(alphabet="abcdefghilnoqrsuw/-=,0123456789 ", max_size=20), max_size=3))
 def test_limit_seeds_parse_or_raise(items):
-    from cosim.compare_options import limits_of
-    from cosim.errors import UserError
+    from cosim.compare.options import limits_of
+    from base.errors import UserError
 
     try:
         limits = limits_of(items)
@@ -351,8 +351,8 @@ def test_limit_seeds_parse_or_raise(items):
     lambda inner: st.one_of(st.lists(inner, max_size=3), st.dictionaries(st.text(max_size=4), inner, max_size=3)),
     max_leaves=6).map(json.dumps)))
 def test_bench_figures_loader_loads_or_raises(tmp_path_factory, text):
-    from cosim.errors import UserError
-    from cosim.runs import merge_json
+    from base.errors import UserError
+    from base.files import merge_json
 
     path = tmp_path_factory.mktemp("bench") / "bench.json"
     path.write_bytes(text.encode())

@@ -1,4 +1,4 @@
-"""``cosim.cocotb_launch.clocked_top_verilog``: the toplevel with its clock inside (the cocotb
+"""``cosim.launch.cocotb_sim.clocked_top_verilog``: the toplevel with its clock inside (the cocotb
 backend's Verilator runs): every port but ``clk`` brought out with its width and direction, and a
 clock of the given period from 0 at time 0. Checked on a small counter in plain Icarus (no cocotb).
 (No `from __future__ import annotations`: the component declares its ports as annotations.)"""
@@ -13,7 +13,7 @@ from amaranth.hdl import Module
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
-from cosim.cocotb_launch import clocked_top_verilog
+from cosim.launch.cocotb_sim import clocked_top_verilog
 from hdl.generate import convert
 
 

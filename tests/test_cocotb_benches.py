@@ -25,7 +25,7 @@ def declared_tests(block: str) -> int:
 @pytest.mark.cocotb
 @pytest.mark.parametrize("block", BLOCKS)
 def test_cocotb_bench(block, tmp_path):
-    from cosim.cocotb_run import run_cocotb
+    from cosim.boards.cocotb_run import run_cocotb
     from hdl.generate import write_verilog
 
     src = write_verilog(block, tmp_path)

@@ -1,4 +1,4 @@
-"""cosim.compare and cosim.sweep: the table, the ratio, the plot, the fixed controller under a
+"""cosim.compare.run and cosim.compare.sweep: the table, the ratio, the plot, the fixed controller under a
 blinded sensor, the executors (a process pool and a small local Dask cluster give the same
 table) and the cache that lets a sweep resume."""
 
@@ -10,7 +10,7 @@ from concurrent.futures import Executor, ProcessPoolExecutor
 import numpy as np
 import pytest
 
-from cosim.compare import (
+from cosim.compare.run import (
     DEFAULT_METHODS,
     METHODS,
     build_report,
@@ -21,8 +21,8 @@ from cosim.compare import (
     run_task,
     write_plot,
 )
-from cosim.errors import UserError
-from cosim.sweep import Cache, executor, run_sweep
+from base.errors import UserError
+from cosim.compare.sweep import Cache, executor, run_sweep
 from ga.genome import hex_from_rows
 from ga.operators import random_population
 
@@ -98,8 +98,8 @@ def test_online_cache_key_is_the_effective_config(monkeypatch):
     """The on-line row's key holds every default, so a changed default is a new lifetime."""
     import dataclasses
 
-    import cosim.online_config as oc
-    from cosim.sweep import task_key
+    import cosim.online.config as oc
+    from cosim.compare.sweep import task_key
 
     def key(**online):
         return task_key(make_tasks(["online"], [1], arena="default", out="x", online=online)[0])
@@ -127,7 +127,7 @@ def test_command_line_errors_are_one_line(capsys):
 
 
 def test_online_options_are_typed_checked_and_reported():
-    from cosim.compare import online_options
+    from cosim.compare.run import online_options
 
     assert online_options(["distance_rule=covered", "loop_cycles=0", "escape=false"]) == \
         {"distance_rule": "covered", "loop_cycles": 0, "escape": False}

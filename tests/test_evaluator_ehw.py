@@ -330,12 +330,12 @@ def test_cocotb_verilog_forward_distance_rule_matches_reference(tmp_path):
     """The option distance_rule="forward" in the generated Verilog (the third way of the test above)."""
     from amaranth.back import verilog
 
-    from cosim.cocotb_run import icarus_time_zero_fix
-    from cosim.cocotb_run import run_cocotb
+    from cosim.boards.cocotb_run import icarus_time_zero_fix
+    from cosim.boards.cocotb_run import run_cocotb
 
     src = tmp_path / "evaluator_ehw.v"
     text = verilog.convert(EvaluatorEHW(distance_rule="forward"), name="evaluator_ehw", emit_src=False)
-    src.write_text(icarus_time_zero_fix(text))  # Icarus: Yosys's time-0 blocks (cosim.cocotb_run)
+    src.write_text(icarus_time_zero_fix(text))  # Icarus: Yosys's time-0 blocks (cosim.boards.cocotb_run)
     n_tests, _ = run_cocotb(
         sources=[src], toplevel="evaluator_ehw", test_module="tb_evaluator_ehw", test_dir=TB_DIR,
         build_name="evaluator_ehw_forward", testcase="distance_rule_matches_reference",

@@ -70,7 +70,7 @@ def test_online_round6_runs_each_variant_and_tabulates(tmp_path, capsys):
     runs = [json.loads(line) for line in out.read_text().splitlines()]
     assert [r["variant"] for r in runs] == list(round6.VARIANTS)
     assert all(r["interactions"] in (120, 121) and 0 < r["lost"] <= r["interactions"] for r in runs)
-    from cosim.online import OnlineConfig, make_run
+    from cosim.online.run import OnlineConfig, make_run
 
     plain = make_run(OnlineConfig(seed=1, max_interactions=120, loop_blame="leg", fail_rates=False)).run()  # rounds 1-7's rule
     assert runs[0]["interactions"] == plain.interactions and runs[0]["phases"] == len(plain.phases)
@@ -131,7 +131,7 @@ def test_online_round7_runs_each_variant_classes_every_step_and_tabulates(tmp_pa
         assert sum(r["steps"].get(c, 0) for c in ("novel", "confirmed", "surprise")) == r["interactions"]
         assert r["steps"]["novel"] == r["transitions"]  # each model entry was novel once
         assert sum(r["download_trace"].values()) == r["phases"]
-    from cosim.online import OnlineConfig, make_run
+    from cosim.online.run import OnlineConfig, make_run
 
     plain = make_run(OnlineConfig(seed=1, max_interactions=120, loop_blame="leg", fail_rates=False)).run()  # rounds 1-7's rule
     assert runs[0]["interactions"] == plain.interactions and runs[0]["phases"] == len(plain.phases)
@@ -172,7 +172,7 @@ def test_online_round8_runs_each_parameter_and_its_cycle_blame_is_the_default(tm
     runs = [json.loads(line) for line in out.read_text().splitlines()]
     assert len(runs) == len(params) and all(r["interactions"] in (150, 151) for r in runs)
     assert runs[4]["reasons"].get("target", 0) == runs[4]["targets"] and runs[5]["reasons"]["periodic"] >= 1
-    from cosim.online import OnlineConfig, make_run
+    from cosim.online.run import OnlineConfig, make_run
 
     for r, rule in ((runs[0], "leg"), (runs[1], "cycle")):
         plain = make_run(OnlineConfig(seed=1, max_interactions=150, loop_blame=rule, fail_rates=False)).run()
@@ -201,7 +201,7 @@ def test_online_round9_runs_each_rule_and_its_default_is_the_default_lifetime(tm
     assert len(runs) == 4 and all(150 <= r["interactions"] <= 160 for r in runs)  # crashes and loops may end past it
     assert all(r["baseline"]["phases"] == r["phases"] for r in runs)
     assert all(r["crash_entries"]["crash_entries"] >= r["crash_entries"]["crash_entries_safe_half"] for r in runs)
-    from cosim.online import OnlineConfig, make_run
+    from cosim.online.run import OnlineConfig, make_run
 
     plain = make_run(OnlineConfig(seed=1, max_interactions=150, fail_rates=False)).run()
     assert (runs[0]["interactions"], runs[0]["targets"], runs[0]["phases"]) == (
@@ -298,7 +298,7 @@ def test_online_round10_terms_prints_the_fitness_gap_by_term(capsys):
 
 def test_online_detector_stops_counts_the_false_alarms_of_a_controller_that_never_fails(capsys):
     stops = _script("online_detector_stops")
-    from cosim.online import OnlineConfig
+    from cosim.online.run import OnlineConfig
 
     run, found_default = stops.baseline_lifetime(OnlineConfig(seed=1, n_targets=6))
     assert run.targets == 6 and len(run.phases) == sum(found_default.values()) > 0
@@ -367,7 +367,7 @@ def test_online_round11_runs_the_distance_rules(tmp_path, capsys):
 def test_online_round12_mirrored_writes_reach_the_board_and_the_host_copy(tmp_path, capsys):
     """Round 12: the mirrored observations go to the board and to the host's copy alike (the same
     model after a lifetime); with no mirror rule the lifetime is ``default``'s, field by field."""
-    from cosim.online import OnlineConfig, make_run
+    from cosim.online.run import OnlineConfig, make_run
 
     round12 = _script("online_round12")
     assert round12.mirrored(0b000010 | 1 << 6, 4, 0b000100 | 3 << 6, False) == (0b000100 | 3 << 6, 5, 0b000010 | 1 << 6, False)
@@ -424,7 +424,7 @@ def test_online_round14_failure_marks_the_rates_and_the_bandit_escape(tmp_path, 
     """Round 14: a failure marks the last ``horizon`` pairs of its execution phase (each once), a
     target clears the phase's pairs; ``failrate`` subtracts the rates of the chosen motions; the
     bandit escape picks the offered motion with the lowest rate; ``default`` is the plain lifetime."""
-    from cosim.online import OnlineConfig, make_run
+    from cosim.online.run import OnlineConfig, make_run
 
     r14 = _script("online_round14")
     config = OnlineConfig(seed=1, max_interactions=150, fail_rates=False)
@@ -463,7 +463,7 @@ def test_online_round14_failure_marks_the_rates_and_the_bandit_escape(tmp_path, 
 def test_online_round15_default_is_the_lifetime_and_rates_change_the_marks(tmp_path, capsys):
     """Round 15: ``default`` is the main code's lifetime (failure rates on); ``rates`` with another
     prior writes other codes, and ``w`` scales the fail counts the host fitness sees."""
-    from cosim.online import OnlineConfig, make_run
+    from cosim.online.run import OnlineConfig, make_run
 
     r15 = _script("online_round15")
     out = tmp_path / "r15.jsonl"
@@ -490,7 +490,7 @@ def test_online_round16_mirror_marks_are_the_main_code_and_the_other_marks_diffe
     """Round 16: ``default`` is round 15's lifetime (own counts); ``marks pool_mirror=1`` is the main
     code's default (``rate_mirror``), phase for phase; decay and the failure kinds' weights change
     the codes; ``w_dist`` scales the distance counts the host fitness sees."""
-    from cosim.online import OnlineConfig, make_run
+    from cosim.online.run import OnlineConfig, make_run
 
     r16 = _script("online_round16")
     out = tmp_path / "r16.jsonl"
@@ -525,7 +525,7 @@ def test_online_round17_default_and_plain_pool_are_the_main_code_and_the_pools_a
     """Round 17: ``default`` and ``pool`` without parameters are the main code's lifetime (mirror
     pooled codes); the neighbour pools lend counts between obstacle states only, a cycle stop marks
     the cycle, the credit lowers a rate, the visit weight raises a busy state's codes."""
-    from cosim.online import OnlineConfig, make_run
+    from cosim.online.run import OnlineConfig, make_run
     from ga.motions import X_BACK
 
     r17 = _script("online_round17")
@@ -574,7 +574,7 @@ def test_online_round18_variants_and_the_probe(tmp_path, capsys):
     log are the lifetime's own."""
     import numpy as np
 
-    from cosim.online import OnlineConfig, make_run
+    from cosim.online.run import OnlineConfig, make_run
     from sim_world.baseline import baseline_table
 
     r18 = _script("online_round18")

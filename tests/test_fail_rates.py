@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cosim.online import OnlineConfig, make_run
+from cosim.online.run import OnlineConfig, make_run
 from ga.evaluator import EvalResult, evaluate_population, fitness
 from ga.fail_rates import (HORIZON, PRIOR_CODE, PROGRESS_STEPS, RATE_ONE, W_FAIL, FailureMarks, fail_counts,
                            mirror_pooled, prior_codes, progress_codes, rate_codes)
@@ -198,7 +198,7 @@ def test_progress_weight_is_checked_and_rides_on_the_rate_codes():
     with pytest.raises(ValueError, match="--progress-weight must be a finite weight >= 0"):
         OnlineConfig(progress_weight=-1.0)
     assert OnlineConfig(progress_weight=3.0, fail_rates=False).progress_weight == 0.0  # no codes to ride on
-    from cosim.online_cli import build_parser, config_from_args
+    from cosim.cli.online import build_parser, config_from_args
 
     args = build_parser().parse_args(["--no-fail-rates", "--progress-weight", "3"])
     with pytest.raises(ValueError, match="--progress-weight needs --fail-rates"):

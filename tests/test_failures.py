@@ -1,5 +1,5 @@
-"""The failure detectors of the execution phase (cosim.failures) and the download choice
-(cosim.download), each on hand-made step sequences through its public interface."""
+"""The failure detectors of the execution phase (cosim.online.failures) and the download choice
+(cosim.online.download), each on hand-made step sequences through its public interface."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from cosim.download import choose_download
-from cosim.failures import Cycles, LegTimeout, NoProgress, Reentries, Repeats, Track, blame, blame_cycle
+from cosim.online.download import choose_download
+from cosim.online.failures import Cycles, LegTimeout, NoProgress, Reentries, Repeats, Track, blame, blame_cycle
 from ga.operators import random_population
 from ga.truth_table import truth_tables
 

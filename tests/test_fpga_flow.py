@@ -1,4 +1,4 @@
-"""The FPGA flow's Python side without the FPGA tools (hdl/fpga.py, cosim/hardware_time.py).
+"""The FPGA flow's Python side without the FPGA tools (hdl/fpga.py, cosim/boards/hardware_time.py).
 
 nextpnr's and Yosys's report parsing on reports shaped as nextpnr 0.11 and Yosys 0.70 write them
 (trimmed from real builds), results/fpga.json merging, the line a failed timing constraint prints,
@@ -15,7 +15,7 @@ import sys
 
 import pytest
 
-from cosim.hardware_time import CLOCK_HZ, measured_clock
+from cosim.boards.hardware_time import CLOCK_HZ, measured_clock
 from hdl import fpga
 from hdl.fpga import (FpgaError, parse_nextpnr_log_utilisation, parse_nextpnr_report, parse_yosys_stat,
                       timing_line, write_results)

@@ -7,7 +7,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 PACKAGES = ("cosim", "ga", "sim_world", "hdl", "benchmarks")
-BACKENDS = {"cosim.amaranth_backend", "cosim.cocotb_backend", "cosim.cocotb_online", "cosim.cocotb_launch"}
+BACKENDS = {"cosim.boards.amaranth_backend", "cosim.boards.cocotb_backend", "cosim.launch.cocotb_test", "cosim.launch.cocotb_sim"}
 
 
 def _modules() -> dict[str, Path]:
@@ -50,11 +50,11 @@ def test_no_import_cycle():
 
 def test_experiment_loops_import_no_backend_and_backends_no_loop():
     modules = _modules()
-    loops = {"cosim.online", "cosim.online_cli", "cosim.offline", "cosim.failures", "cosim.download",
-             "cosim.online_report", "cosim.online_config"}
+    loops = {"cosim.online.run", "cosim.cli.online", "cosim.offline.run", "cosim.online.failures", "cosim.online.download",
+             "cosim.online.report", "cosim.online.config"}
     for loop in loops:
         assert not _imports(modules[loop], modules) & BACKENDS, loop
-    for backend in ("cosim.amaranth_backend", "cosim.cocotb_backend"):
+    for backend in ("cosim.boards.amaranth_backend", "cosim.boards.cocotb_backend"):
         assert not _imports(modules[backend], modules) & loops, backend
 
 

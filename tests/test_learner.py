@@ -139,7 +139,7 @@ def test_cocotb_learner_verilog_equals_reference(tmp_path):
     """The generated Verilog of a small learner in cocotb (Icarus by default, EHW_SIM to change)."""
     from amaranth.back import verilog
 
-    from cosim.cocotb_run import icarus_time_zero_fix, run_cocotb
+    from cosim.boards.cocotb_run import icarus_time_zero_fix, run_cocotb
     from hdl.learner import Learner
 
     config, seed, obs, cuts = CASES[0]

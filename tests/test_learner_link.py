@@ -1,5 +1,5 @@
 # amaranth: UnusedElaboratable=no
-"""The learning board behind the host link (hdl/learner_link.py, cosim/link_learning.py): the
+"""The learning board behind the host link (hdl/learner_link.py, cosim/link/learning.py): the
 ``ulx3s-learner`` top in Amaranth's simulator, bit by bit through the UART line model
 (tests/link_sim.py), driven by the host's LinkLearningBoard, equals the reference learning board
 (ga.hardware_ga) on a short learn: two phases with failure-rate codes written before each (the
@@ -13,12 +13,12 @@ import json
 import numpy as np
 import pytest
 
-from cosim.boards import ReferenceLearningBoard
-from cosim.learning_phase import hardware_ga_config
-from cosim.link_boards import LinkControllerBoard
-from cosim.link_host import LinkClient, LinkError, pack, unpack
-from cosim.link_learning import LinkLearningBoard
-from cosim.online import OnlineConfig, make_run
+from cosim.boards.reference import ReferenceLearningBoard
+from cosim.online.learning_phase import hardware_ga_config
+from cosim.link.boards import LinkControllerBoard
+from cosim.link.host import LinkClient, LinkError, pack, unpack
+from cosim.link.learning import LinkLearningBoard
+from cosim.online.run import OnlineConfig, make_run
 from ga import hardware_ga as hg
 from ga.motions import OBSTACLE_MASK
 from ga.operators import random_population
@@ -103,7 +103,7 @@ def test_learner_top_over_the_link_equals_the_reference():
 
 
 def test_serial_learning_board_errors_name_the_port(monkeypatch):
-    from cosim.link_learning import make_serial_learning_boards
+    from cosim.link.learning import make_serial_learning_boards
 
     population = random_population(np.random.default_rng(1), CONFIG.population)
     monkeypatch.delenv("EHW_PORT", raising=False)
@@ -138,7 +138,7 @@ def test_uart_learning_backend_short_lifetime_equals_reference(tmp_path):
     the observations, the motions and, per phase, one LEARN, one READ_GENOME and the download's
     LOAD_CONTROLLER cross the link after the population's one upload, and the changed rate codes
     (WRITE_RATE) before the phases that follow a failure."""
-    from cosim.uart_backend import run_online_uart
+    from cosim.launch.uart_sim import run_online_uart
 
     summary = run_online_uart(SHORT, tmp_path)
     reference = make_run(SHORT).run().summary()
@@ -164,7 +164,7 @@ def test_uart_learning_backend_short_lifetime_equals_reference(tmp_path):
 def test_serial_learning_backend_errors(monkeypatch, tmp_path, capsys):
     """`ehw sim --backend serial --ga hardware`: one error line for a missing port, a second port,
     a port option on another backend, and a port where no board answers (pyserial's loop://)."""
-    from cosim.cli import main
+    from cosim.cli.main import main
 
     monkeypatch.delenv("EHW_PORT", raising=False)
     monkeypatch.delenv("EHW_PORT2", raising=False)
@@ -191,7 +191,7 @@ def test_serial_learning_backend_runs_a_lifetime_through_make_run(monkeypatch):
     LearnerLinkTop in Amaranth's simulator behind the link, tests/link_sim.py) for one learner
     board, whose controller board drives and whose engine learns every phase (each learn checked
     against the reference beside it): the reference's phases and motions."""
-    import cosim.link_boards
+    import cosim.link.boards
 
     # seed 8: 16 interactions, then a loop in an obstacle state (an escape learned over the link;
     # with rounds 1-7's blame: round 8's puts this stop on a pair the best already avoids)
@@ -207,7 +207,7 @@ def test_serial_learning_backend_runs_a_lifetime_through_make_run(monkeypatch):
         opened.append((port, baud))
         return line
 
-    monkeypatch.setattr(cosim.link_boards, "open_port", fake_port)
+    monkeypatch.setattr(cosim.link.boards, "open_port", fake_port)
     monkeypatch.setenv("EHW_PORT", "/dev/ttyFAKE")
     monkeypatch.delenv("EHW_BAUD", raising=False)
     run = make_run(config, "serial").run(stop_after_phases=1)

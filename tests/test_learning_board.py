@@ -1,11 +1,11 @@
-"""The learning board (cosim.boards.LearningBoard): the reference, Amaranth and cocotb (Icarus,
+"""The learning board (cosim.boards.interfaces.LearningBoard): the reference, Amaranth and cocotb (Icarus,
 Verilator) backends agree on a short --ga hardware lifetime with --fail-rates; --resume with --ga
 hardware; the on-line run's --ga hardware option."""
 
 import pytest
 
-from cosim.online import OnlineConfig, make_run
-from cosim.online_cli import main
+from cosim.online.run import OnlineConfig, make_run
+from cosim.cli.online import main
 from ga.fail_rates import PRIOR_CODE
 
 
@@ -27,7 +27,7 @@ def _comparable(summary: dict) -> dict:
 @pytest.fixture(scope="module")
 def short_runs():
     """The short lifetime on the reference and the Amaranth learning board (which also checks
-    every learn against its own reference: cosim.amaranth_learning)."""
+    every learn against its own reference: cosim.boards.amaranth_learning)."""
     return {backend: make_run(SHORT, backend).run().summary() for backend in ("reference", "amaranth")}
 
 
@@ -45,7 +45,7 @@ def test_online_hardware_ga_reference_equals_amaranth(short_runs):
 def test_online_hardware_ga_cocotb_equals_reference_and_amaranth(short_runs, simulator, tmp_path):
     """The same lifetime inside a cocotb test on learning_system_top's Verilog: the engine
     learns every phase (checked against the reference at each learn), the controller EHW drives."""
-    from cosim.cocotb_launch import run_online_cocotb
+    from cosim.launch.cocotb_sim import run_online_cocotb
 
     summary = run_online_cocotb(SHORT, tmp_path, simulator=simulator)
     assert summary["backend"] == "cocotb"
@@ -122,7 +122,7 @@ def test_hardware_ga_resume_equals_uninterrupted(tmp_path):
 def test_hardware_ga_resume_refuses_an_edited_engine_state(tmp_path):
     import json
 
-    from cosim.checkpoint import CheckpointError
+    from base.checkpoint import CheckpointError
 
     config = OnlineConfig(seed=5, **HW_SMALL)
     make_run(config, out=tmp_path).run(stop_after_phases=1)
@@ -146,7 +146,7 @@ def test_killed_hardware_ga_run_resumes_to_the_uninterrupted_summary(tmp_path):
     # 36 phases of ~30 ms: the kill after the 3rd checkpoint leaves most of the run to resume
     args = ["--seed", "7", "--ga", "hardware", "--targets", "8", "--population", "200", "--lanes", "4",
             "--no-plots", "--quiet"]
-    ehw = [sys.executable, "-m", "cosim.cli", "sim"]
+    ehw = [sys.executable, "-m", "cosim.cli.main", "sim"]
     env = {**os.environ, "PYTHONPATH": os.getcwd()}
     subprocess.run(ehw + args + ["--out", "whole"], cwd=tmp_path, env=env, check=True, capture_output=True)
     whole = json.loads((tmp_path / "whole/summary.json").read_text())

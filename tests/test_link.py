@@ -1,6 +1,6 @@
 # amaranth: UnusedElaboratable=no
-"""The host link (hdl/link_protocol.py, hdl/link_tops.py, cosim/link_host.py, cosim/link_boards.py,
-cosim/uart_backend.py).
+"""The host link (hdl/link_protocol.py, hdl/link_tops.py, cosim/link/host.py, cosim/link/boards.py,
+cosim/launch/uart_sim.py).
 
 - Frames: the host's encoder against the gateware's definitions (CRC residue, header layout).
 - Amaranth's simulator, bit by bit through the UART line model (tests/link_sim.py): the
@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cosim.link_host import (LinkClient, LinkError, encode_frame, genome_payload, pack, unpack)
+from cosim.link.host import (LinkClient, LinkError, encode_frame, genome_payload, pack, unpack)
 from hdl.link_protocol import (CRC_BYTES, HEADER_BYTES, LINK_CRC, REQUEST_LENGTH, RESULT_BYTES, RESULT_REPLY,
                                SYNC, Command, FrameHeader, Status, genome_bytes)
 from hdl.link_tops import ControllerLinkTop, EvaluatorLinkTop
@@ -151,8 +151,8 @@ def test_damaged_controller_frame_is_never_committed():
 
 
 def test_single_buffered_evaluator_top_matches_the_reference():
-    from cosim.boards import ReferenceEvaluatorBoard
-    from cosim.link_boards import LinkEvaluatorBoard
+    from cosim.boards.reference import ReferenceEvaluatorBoard
+    from cosim.link.boards import LinkEvaluatorBoard
     from ga.evaluator import evaluate_population
     from ga.fail_rates import RATE_ONE, prior_codes
     from test_evaluator_cases import constant_rows
@@ -278,9 +278,9 @@ def test_truncated_frame_is_answered_and_dropped():
 
 @pytest.mark.verilator
 def test_uart_backend_short_run_equals_reference_and_faults(tmp_path, monkeypatch):
-    from cosim.cocotb_run import run_cocotb
-    from cosim.online import OnlineConfig, make_run
-    from cosim.uart_backend import TOPLEVEL, prepare_uart_run
+    from cosim.boards.cocotb_run import run_cocotb
+    from cosim.online.run import OnlineConfig, make_run
+    from cosim.launch.uart_sim import TOPLEVEL, prepare_uart_run
     from hdl.uart import max_baud
 
     # 10 generations, 119 interactions, crash, loop and time-out phases, the failure rates on (rate
@@ -290,7 +290,7 @@ def test_uart_backend_short_run_equals_reference_and_faults(tmp_path, monkeypatc
     source, env = prepare_uart_run(config, tmp_path, baud=max_baud(25e6), p_max=8,
                                    build_name=f"{TOPLEVEL}_test")
     monkeypatch.syspath_prepend(str(TB_DIR))  # cocotb imports tb_link from the launcher's sys.path
-    n_tests, _ = run_cocotb(sources=[source], toplevel=TOPLEVEL, test_module="cosim.uart_backend,tb_link",
+    n_tests, _ = run_cocotb(sources=[source], toplevel=TOPLEVEL, test_module="cosim.launch.uart_test,tb_link",
                             test_dir=TB_DIR, build_name=f"{TOPLEVEL}_test", extra_env=env,
                             simulator="verilator")
     assert n_tests == 5
@@ -308,7 +308,7 @@ def test_uart_backend_short_run_equals_reference_and_faults(tmp_path, monkeypatc
 
 
 def test_serial_backend_errors_name_the_port(monkeypatch, tmp_path, capsys):
-    from cosim.cli import main
+    from cosim.cli.main import main
 
     monkeypatch.delenv("EHW_PORT", raising=False)
     assert main(["sim", "--backend", "serial", "--out", str(tmp_path / "run"), "--force", "--quiet"]) == 2
@@ -325,7 +325,7 @@ def test_serial_backend_errors_name_the_port(monkeypatch, tmp_path, capsys):
 
 
 def test_wrong_design_and_silent_board_are_named():
-    from cosim.link_boards import boards_over
+    from cosim.link.boards import boards_over
 
     client, _ = _client(ControllerLinkTop(CLK, BAUD, timeout_s=1e-4))
     with pytest.raises(LinkError, match="amaranth ControllerLinkTop: the board is 'ehw-controller', expected 'ehw-system'"):

@@ -1,6 +1,6 @@
 """Property tests of the loaders (issue 15): for any mutated input, the arena, config-file and
 checkpoint loaders either give a valid object or raise the project's error type (a
-``cosim.errors.UserError``: one ``error:`` line at the command line), never another exception."""
+``base.errors.UserError``: one ``error:`` line at the command line), never another exception."""
 
 from __future__ import annotations
 
@@ -10,9 +10,9 @@ import json
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from cosim.checkpoint import CheckpointError, read_checkpoint, save_checkpoint
-from cosim.config_file import ConfigFileError, field_types, load_config_file, to_toml
-from cosim.errors import UserError
+from base.checkpoint import CheckpointError, read_checkpoint, save_checkpoint
+from base.config_file import ConfigFileError, field_types, load_config_file, to_toml
+from base.errors import UserError
 from sim_world.arena import ARENA_DIR, Arena, ArenaError, arena_from_dict
 
 EMPTY = json.loads((ARENA_DIR / "empty.json").read_text())
@@ -68,8 +68,8 @@ def test_arena_loader_loads_or_raises_arena_error(data):
 
 
 def _online_types():
-    from cosim.run_commands import SIM_RUN_OPTIONS
-    from cosim.online import OnlineConfig
+    from cosim.cli.commands import SIM_RUN_OPTIONS
+    from cosim.online.run import OnlineConfig
 
     return {**field_types(OnlineConfig), **SIM_RUN_OPTIONS}
 
@@ -85,9 +85,9 @@ VALID_TOML = to_toml({"backend": "reference", "seed": 3, "population": 20, "aren
 def test_config_loader_loads_or_raises_config_error(tmp_path_factory, raw):
     """Any key/value mapping: the checked values, or a ConfigFileError; what loads gives the
     run's OnlineConfig (as ``ehw sim --config`` builds it), or a UserError naming the field."""
-    import cosim.cli
-    from cosim.online import OnlineConfig
-    from cosim.run_commands import online_config
+    import cosim.cli.main
+    from cosim.online.run import OnlineConfig
+    from cosim.cli.commands import online_config
 
     path = tmp_path_factory.mktemp("cfg") / "run.json"
     path.write_text(json.dumps({"config": raw}))
@@ -96,7 +96,7 @@ def test_config_loader_loads_or_raises_config_error(tmp_path_factory, raw):
     except ConfigFileError:
         return
     assert set(values) <= set(ONLINE_TYPES)
-    args = cosim.cli.build_parser().parse_args(["sim"])
+    args = cosim.cli.main.build_parser().parse_args(["sim"])
     fields = {k: v for k, v in values.items() if k in field_types(OnlineConfig)}
     try:
         config = online_config(args, fields)

@@ -4,9 +4,9 @@ import json
 
 import pytest
 
-from cosim.checkpoint import CheckpointError
-from cosim.cli import main as ehw
-from cosim.offline import default_ga_config, run_offline
+from base.checkpoint import CheckpointError
+from cosim.cli.main import main as ehw
+from cosim.offline.run import default_ga_config, run_offline
 
 SMALL = dict(arena="one_obstacle", max_leg_steps=80, n_targets=64, progress=False, plots=False,
              transfer_trials=0, ga_config=default_ga_config(population=8, tournament=3))
@@ -98,7 +98,7 @@ def test_command_line_writes_summary_figures_and_transfer(tmp_path, capsys):
 def test_evaluator_cache_gives_the_driven_result():
     import numpy as np
 
-    from cosim.offline import Evaluator, evaluate
+    from cosim.offline.run import Evaluator, evaluate
     from ga.operators import random_population
     from sim_world.world import World
 
@@ -117,7 +117,7 @@ def test_evaluator_cache_gives_the_driven_result():
 
 
 def test_transfer_leg_steps_sets_the_transfer_runs_limit(tmp_path, capsys):
-    from cosim.offline_noisy import transfer
+    from cosim.offline.noisy import transfer
 
     out = tmp_path / "run"
     ehw(["offline", "--seed", "4", "--generations-cap", "2", "--arena", "empty", "--max-leg-steps", "60",

@@ -29,7 +29,7 @@ def test_diagnosis_names_the_failing_step():
 def test_transfer_limits_tabulates_each_summary_and_the_baseline(tmp_path, capsys):
     import json
 
-    from cosim.offline import default_ga_config, run_offline
+    from cosim.offline.run import default_ga_config, run_offline
 
     spec = importlib.util.spec_from_file_location("offline_transfer_limits", SCRIPT.with_name("offline_transfer_limits.py"))
     module = importlib.util.module_from_spec(spec)

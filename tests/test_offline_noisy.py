@@ -1,12 +1,12 @@
-"""The off-line method's noisy stage (cosim.offline_noisy) and the course's skipped legs."""
+"""The off-line method's noisy stage (cosim.offline.noisy) and the course's skipped legs."""
 
 import json
 
 import numpy as np
 import pytest
 
-from cosim.offline import default_ga_config, run_offline
-from cosim.offline_noisy import NoisyRun, NoisyStage, Records, drive_noisy, noise_seeds, table_key
+from cosim.offline.run import default_ga_config, run_offline
+from cosim.offline.noisy import NoisyRun, NoisyStage, Records, drive_noisy, noise_seeds, table_key
 from ga.motions import Motion
 from sim_world.course import run_course
 from sim_world.world import DEFAULT_NOISE, World
@@ -117,7 +117,7 @@ def test_the_noisy_stage_resumes_bit_for_bit_and_pool_equals_serial(tmp_path):
 
 
 def test_the_race_keeps_the_champion_unless_the_challenger_wins_again():
-    from cosim.offline_noisy import _drive_one, noisy_generation
+    from cosim.offline.noisy import _drive_one, noisy_generation
     from ga.operators import random_population
 
     pop = random_population(np.random.default_rng(3), 6)
@@ -233,8 +233,8 @@ def test_the_config_files_name_only_offline_options_and_the_default_is_the_robus
     import tomllib
     from pathlib import Path
 
-    from cosim import offline
-    from cosim.offline_noisy import ROBUST_MAX_LEG_STEPS, ROBUST_STAGE
+    from cosim.offline import run as offline
+    from cosim.offline.noisy import ROBUST_MAX_LEG_STEPS, ROBUST_STAGE
 
     parser = offline.add_arguments(argparse.ArgumentParser())
     dests = {a.dest for a in parser._actions}

@@ -1,4 +1,4 @@
-"""The on-line model-based loop (cosim.online): determinism, resume, adaptation, the board interface."""
+"""The on-line model-based loop (cosim.online.run): determinism, resume, adaptation, the board interface."""
 
 from __future__ import annotations
 
@@ -7,15 +7,12 @@ import json
 import numpy as np
 import pytest
 
-from cosim.boards import (
-    ReferenceControllerBoard,
-    ReferenceEvaluatorBoard,
-    make_boards,
-)
-from cosim.online import OnlineConfig, OnlineRun, make_run
-from cosim.online_config import option
-from cosim.online_cli import build_parser, config_from_args, main
-from cosim.online_report import adaptation_figures, summary_table
+from cosim.boards.reference import ReferenceControllerBoard, ReferenceEvaluatorBoard
+from cosim.boards.registry import make_boards
+from cosim.online.run import OnlineConfig, OnlineRun, make_run
+from cosim.online.config import option
+from cosim.cli.online import build_parser, config_from_args, main
+from cosim.online.report import adaptation_figures, summary_table
 from ga.genome import validate_rows
 from ga.motions import OBSTACLE_MASK
 from ga.operators import random_population
@@ -76,7 +73,7 @@ def test_resume_equals_uninterrupted(tmp_path, options):
 
 
 def test_resume_refuses_another_config(tmp_path):
-    from cosim.checkpoint import CheckpointError
+    from base.checkpoint import CheckpointError
 
     make_run(OnlineConfig(seed=5, **SMALL), out=tmp_path).run(stop_after_phases=1)
     with pytest.raises(CheckpointError, match="seed"):
@@ -167,7 +164,7 @@ def test_unknown_backend_is_refused():
 
 def ehw_sim(argv):
     """``ehw sim ...`` (the on-line command line)."""
-    from cosim.cli import main as ehw
+    from cosim.cli.main import main as ehw
 
     return ehw(["sim", *argv])
 
@@ -296,7 +293,7 @@ def test_dropped_options_are_gone():
 
 
 def test_interaction_breakdown_on_hand_made_records():
-    from cosim.online_report import interaction_breakdown
+    from cosim.online.report import interaction_breakdown
 
     phases = [{"interactions": 10, "reason": "crash", "state": 1, "motion": 0},
               {"interactions": 25, "reason": "loop", "state": 1, "motion": 3},

@@ -86,7 +86,7 @@ def test_the_reflex_leaves_one_motion_in_the_obstacle_free_states():
 
 
 def test_seeds_follow_the_online_scheme():
-    from cosim.online import _seeds
+    from cosim.online.run import _seeds
 
     world_seed, rng = seeds(7)
     online_world, online_rng = _seeds(7)

@@ -131,7 +131,7 @@ def test_generated_controller_simulates_in_verilator(tmp_path):
     ``--timing`` for the testbench's delays, the design has none): no X, no NEEDTIMINGOPT."""
     import os
 
-    from cosim.cocotb_run import require_verilator
+    from cosim.boards.cocotb_run import require_verilator
 
     try:
         require_verilator()

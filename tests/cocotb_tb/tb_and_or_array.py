@@ -1,7 +1,7 @@
 """cocotb testbench: the generated and_or_array Verilog against the NumPy reference.
 
 Every one of the 256 inputs of every shared vector (tests/vectors.py), one Timer step each.
-Started from pytest by tests/test_and_or_array.py through cosim.cocotb_run.run_cocotb.
+Started from pytest by tests/test_and_or_array.py through cosim.boards.cocotb_run.run_cocotb.
 """
 
 from __future__ import annotations

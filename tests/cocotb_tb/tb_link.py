@@ -1,6 +1,6 @@
 """cocotb testbench: SystemLinkTop (system_link_top.v) through its UART pins, with the host code
-of the serial backend (``cosim.link_host``, ``cosim.link_boards``) over the uart backend's
-simulated line (``cosim.uart_backend.SimulatedSerial``, cocotbext-uart).
+of the serial backend (``cosim.link.host``, ``cosim.link.boards``) over the uart backend's
+simulated line (``cosim.link.simulated.SimulatedSerial``, cocotbext-uart).
 
 - ``identify``: design, slots, counters;
 - ``faults``: a flipped request byte (in a LOAD_CONTROLLER frame) and a flipped reply byte each
@@ -13,7 +13,7 @@ simulated line (``cosim.uart_backend.SimulatedSerial``, cocotbext-uart).
 - ``silent_board``: a board that stops answering gives a LinkError naming the line after
   ``RETRIES`` resends, never a result.
 
-Started from pytest by tests/test_link.py (with the short on-line run of cosim.uart_backend in
+Started from pytest by tests/test_link.py (with the short on-line run of cosim.launch.uart_sim in
 the same simulation build).
 """
 
@@ -29,9 +29,10 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # tests/, for link_sim
 
-from cosim.link_boards import LinkControllerBoard, LinkEvaluatorBoard  # noqa: E402
-from cosim.link_host import RETRIES, LinkClient, LinkError, pack  # noqa: E402
-from cosim.uart_backend import CONFIG_ENV, SIM_CLK_HZ, host_timeout_s, start_top  # noqa: E402
+from cosim.link.boards import LinkControllerBoard, LinkEvaluatorBoard  # noqa: E402
+from cosim.link.host import RETRIES, LinkClient, LinkError, pack  # noqa: E402
+from cosim.launch.lifetime import CONFIG_ENV  # noqa: E402
+from cosim.link.simulated import SIM_CLK_HZ, host_timeout_s, start_top  # noqa: E402
 from ga.motions import DEFAULT_DISTANCE_RULE  # noqa: E402
 from hdl.link_protocol import LINK_CRC, SYNC, FrameHeader  # noqa: E402
 from link_sim import FaultyStream  # noqa: E402

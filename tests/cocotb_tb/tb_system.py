@@ -23,7 +23,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # tests/, for the shared cases
 
-from cosim.cocotb_backend import CocotbSystem  # noqa: E402
+from cosim.boards.cocotb_backend import CocotbSystem  # noqa: E402
 from ga.evaluator import evaluate_population  # noqa: E402
 from ga.fail_rates import prior_codes  # noqa: E402
 from ga.truth_table import truth_tables  # noqa: E402

@@ -1,0 +1,203 @@
+"""The comparison's report: statistics over the seeds, compare.md and the plot (cosim.compare.run's).
+
+The method names, their display names and the rows of the table are defined here, once.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from base.files import atomic_savefig
+from cosim.paper import PAPER_OFFLINE, PAPER_ONLINE
+
+PAPER = {"online": PAPER_ONLINE, "offline": PAPER_OFFLINE}
+TABULAR = ("q-learning", "dyna-q", "prioritized-sweeping")
+DEEP = ("dqn", "ppo")
+METHODS = ("online", "offline", "baseline") + TABULAR + DEEP
+OPTIONAL = DEEP  # need the [rl] extra; not in the default --methods
+DEFAULT_METHODS = tuple(m for m in METHODS if m not in OPTIONAL)
+SHAPINGS = ("shaped", "unshaped")
+ROWS = ("interactions", "crashes", "targets_reached", "world_states", "transitions", "generations",
+        "genetic_operations", "cpu_s")
+ADAPT_WINDOW = 8
+N_TARGETS = 64
+NAMES = {"online": "on-line model-based", "offline": "off-line model-free", "baseline": "reactive baseline",
+         "q-learning": "Q-learning", "dyna-q": "Dyna-Q", "prioritized-sweeping": "prioritized sweeping",
+         "dqn": "DQN (SB3)", "ppo": "PPO (SB3)"}
+
+
+def display_name(row: str) -> str:
+    """``q-learning/shaped`` -> ``Q-learning, shaped``."""
+    method, _, shaping = row.partition("/")
+    return NAMES.get(method, method) + (f", {shaping}" if shaping else "")
+
+
+# -- the report --------------------------------------------------------------------------------
+
+
+def _stats(values) -> dict:
+    values = [v for v in values if v is not None]
+    if not values:
+        return {"median": None, "min": None, "max": None}
+    return {"median": float(np.median(values)), "min": min(values), "max": max(values)}
+
+
+def _fmt(stat: dict) -> str:
+    if stat["median"] is None:
+        return "-"
+    med = stat["median"]
+    text = f"{med:,.0f}" if med == int(med) else f"{med:,.1f}"
+    if stat["min"] != stat["max"]:
+        lo, hi = stat["min"], stat["max"]
+        text += f" ({lo:,.0f}-{hi:,.0f})" if float(lo).is_integer() and float(hi).is_integer() and abs(hi) > 9 \
+            else f" ({lo:,.1f}-{hi:,.1f})"
+    return text
+
+
+def build_report(results: dict, arena: str, seeds: list[int]) -> dict:
+    """``results[row][seed]`` -> the report: per row the statistics over ``seeds``."""
+    report = {"arena": arena, "seeds": seeds, "paper": PAPER, "methods": {}, "per_seed": results}
+    for row, per_seed in results.items():
+        got = [per_seed[s] for s in seeds if s in per_seed]
+        stats = {key: _stats([r.get(key) for r in got]) for key in ROWS}
+        stats["reached_64"] = sum(1 for r in got if r.get("targets_reached", 0) >= N_TARGETS)
+        stats["seeds_run"] = len(got)
+        stats["interactions_per_seed"] = {s: per_seed[s].get("interactions") for s in seeds if s in per_seed}
+        # where a lifetime was capped short of 64 targets: how far it got
+        stats["capped"] = {s: per_seed[s].get("targets_reached") for s in seeds
+                           if s in per_seed and per_seed[s].get("targets_reached", 0) < N_TARGETS}
+        report["methods"][row] = stats
+    on, off = results.get("online", {}), results.get("offline", {})
+    ratios = [off[s]["interactions"] / on[s]["interactions"] for s in seeds
+              if s in on and s in off and on[s]["interactions"]]
+    if ratios:
+        med_on = report["methods"]["online"]["interactions"]["median"]
+        med_off = report["methods"]["offline"]["interactions"]["median"]
+        report["interaction_ratio"] = {"of_medians": med_off / med_on, "per_seed": ratios,
+                                       "median_per_seed": float(np.median(ratios))}
+    return report
+
+
+def _row_order(rows) -> list[str]:
+    order = {m: i for i, m in enumerate(METHODS)}
+    return sorted(rows, key=lambda r: (order.get(r.partition("/")[0], 99), r))
+
+
+def _seed_text(seeds: list[int]) -> str:
+    seeds = sorted(seeds)
+    if seeds and seeds == list(range(seeds[0], seeds[-1] + 1)):
+        return f"{seeds[0]}..{seeds[-1]}" if len(seeds) > 1 else str(seeds[0])
+    return ", ".join(map(str, seeds))
+
+
+def markdown(report: dict) -> str:
+    rows = _row_order(report["methods"])
+    seeds = report["seeds"]
+    lines = [f"# Every method on the same task ({report['arena']} arena, seeds {_seed_text(seeds)})", "",
+             "| method | reached 64 | interactions to 64: median (range) | crashes | world states | "
+             "transitions | generations | CPU s per lifetime |", "|---|---|---|---|---|---|---|---|"]
+    for row in rows:
+        st = report["methods"][row]
+        cells = [f"{st['reached_64']}/{st['seeds_run']}", _fmt(st["interactions"]), _fmt(st["crashes"]),
+                 _fmt(st["world_states"]), _fmt(st["transitions"]), _fmt(st["generations"]), _fmt(st["cpu_s"])]
+        lines.append(f"| {display_name(row)} | " + " | ".join(cells) + " |")
+    for name, paper in (("paper, on-line", PAPER["online"]), ("paper, off-line", PAPER["offline"])):
+        lines.append(f"| {name} | yes | {paper['interactions']:,} | - | {paper['world_states']} | "
+                     f"{paper['transitions']} | {paper['generations']} | - |")
+    fewer = [f"{display_name(r)}: {report['methods'][r]['seeds_run']}" for r in rows
+             if report["methods"][r]["seeds_run"] < len(seeds)]
+    if fewer:
+        lines += ["", "Rows on fewer seeds (the first ones of the range; CPU at hand): " + "; ".join(fewer) + "."]
+    capped = {row: st["capped"] for row, st in report["methods"].items() if st["capped"]}
+    if capped:
+        lines += ["", "Short of 64 targets (an interaction, generation or crash stop; their interactions are "
+                  "lower bounds): " + "; ".join(
+                      f"{display_name(r)}: " + ", ".join(f"seed {s} at {t}" for s, t in sorted(c.items()))
+                      for r, c in ((r, capped[r]) for r in _row_order(capped)))]
+    tuning = report.get("tuning")
+    if tuning:
+        lines += ["", "Seeds: reported " + _seed_text(seeds) + ". " + tuning]
+    lines += ["", "Every motion executed in the noisy world is one interaction (exploration included); the "
+              "reflex drives the four obstacle-free states in every method. 'shaped': the reward adds the "
+              "progress towards the ball, a distance the 8-bit state does not contain (peers/lifetime.py); "
+              "'unshaped': target, crash and step rewards only. Off-line: interactions of every "
+              "controller the GA evaluated; its crashes end those evaluations and are not counted. "
+              "CPU seconds: the lifetime's worker process."]
+    if report.get("online_distance_rule", "forward") != "forward":
+        lines += ["", f"On-line runs with the option dist[a] = {report['online_distance_rule']} (the "
+                  "paper's first reading, not SPEC section 7; docs/online.md, round 5)."]
+    if report.get("online_options"):
+        lines += ["", "On-line options: " + ", ".join(f"`{k}={v}`" for k, v in report["online_options"].items())
+                  + " (defaults otherwise)."]
+    if "interaction_ratio" in report:
+        r = report["interaction_ratio"]
+        lines += ["", f"Interaction ratio off-line / on-line: **{r['of_medians']:.0f}** (ratio of the "
+                  f"medians; per seed {', '.join(f'{x:.0f}' for x in r['per_seed'])}); paper: 267 "
+                  "(3,283,269 / 12,280), 'about 250'."]
+    if "adaptation" in report:
+        a = report["adaptation"]
+        lines += ["", f"## Adaptation: IR bit {a['bit']} blinded after target {a['after']}", "",
+                  f"Interactions for the next {ADAPT_WINDOW} targets (per seed; '-' = did not reach them):", "",
+                  "| seed | on-line (learning) | fixed off-line controller |", "|---|---|---|"]
+        for row in a["per_seed"]:
+            on = row["online"] if row["online"] is not None else "-"
+            off = row["offline"] if row["offline"] is not None else "-"
+            lines.append(f"| {row['seed']} | {on} | {off} |")
+    online = report["per_seed"].get("online", {})
+    if online:
+        lines += ["", "On-line learning phases by reason (per seed): " + "; ".join(
+            f"{s}: {v.get('phase_reasons')}" for s, v in sorted(online.items()))]
+    if report.get("wall_time_s") is not None:
+        lines += ["", f"Wall time of this comparison: {report['wall_time_s']:,.0f} s ({report.get('executor')})."]
+    return "\n".join(lines) + "\n"
+
+
+def _curve(target_interactions: list[int], grid: np.ndarray, end: int) -> np.ndarray:
+    """Targets reached after x interactions, for x on ``grid`` (NaN past the lifetime's end
+    ``end`` unless it reached them all: then the count holds)."""
+    y = np.searchsorted(np.asarray(target_interactions, dtype=float), grid, side="right").astype(float)
+    if len(target_interactions) < N_TARGETS:
+        y[grid > end] = len(target_interactions)  # capped: stays where it stopped
+    return y
+
+
+def write_plot(report: dict, path: Path) -> Path:
+    """Targets reached against interactions: per method the median over the seeds and its range
+    (dashed: unshaped rewards; off-line: targets of its best controller so far)."""
+    from sim_world.render import _plt
+
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(8, 5), dpi=110)
+    ends = [r.get("interactions") or 1 for per in report["per_seed"].values() for r in per.values()]
+    grid = np.unique(np.geomspace(10, max(max(ends, default=10), 100) * 1.05, 600).round())
+    colours = dict(zip(METHODS, plt.get_cmap("tab10").colors))
+    for row in _row_order(report["methods"]):
+        per = report["per_seed"][row]
+        curves = [_curve(r.get("target_interactions") or [], grid, r.get("interactions") or 0)
+                  for s, r in per.items() if "target_interactions" in r]
+        if not curves:
+            continue
+        ys = np.vstack(curves)
+        colour = colours.get(row.partition("/")[0], "grey")
+        style = "--" if row.endswith("/unshaped") else "-"
+        ax.fill_between(grid, ys.min(axis=0), ys.max(axis=0), color=colour, alpha=0.12, linewidth=0)
+        med = report["methods"][row]["interactions"]["median"]
+        label = f"{display_name(row)} (median {med:,.0f})" if med is not None else display_name(row)
+        ax.plot(grid, np.median(ys, axis=0), color=colour, linestyle=style, label=label, linewidth=1.6)
+    ax.axvline(PAPER["online"]["interactions"], color="k", linestyle=":", linewidth=1)
+    ax.text(PAPER["online"]["interactions"], 1, " paper on-line\n 12,280", fontsize=7, va="bottom")
+    ax.set_xscale("log")
+    ax.set_ylim(0, N_TARGETS + 1)
+    ax.set_xlabel("interactions (motions executed in the noisy world)")
+    ax.set_ylabel("targets reached")
+    ax.set_title(f"Targets reached against interactions, median and range over seeds "
+                 f"{_seed_text(report['seeds'])}", fontsize=9)
+    ax.grid(True, which="both", alpha=0.25)
+    ax.legend(fontsize=7, loc="upper left")
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    atomic_savefig(fig, path)
+    plt.close(fig)
+    return path
