@@ -22,6 +22,11 @@ def _names() -> list[str]:
     return sorted(m.name for m in pkgutil.iter_modules(benchmarks.__path__) if m.name.startswith("bench_"))
 
 
+def _load(name: str):
+    """The benchmark module ``benchmarks.<name>``."""
+    return importlib.import_module(f"benchmarks.{name}")
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
     parser.add_argument("only", nargs="*", metavar="MODULE",
                         help=f"modules to run (default: all of {', '.join(_names())})")
@@ -60,7 +65,7 @@ def run_from_args(args, folder: Path) -> int:
     for name in args.only or _names():
         print(f"== {name}", flush=True)
         t0 = time.perf_counter()
-        result = importlib.import_module(f"benchmarks.{name}").run()
+        result = _load(name).run()
         for key, value in result.items():
             print(f"  {key:40s} {value}")
         figures.update(result)

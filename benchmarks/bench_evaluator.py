@@ -19,15 +19,14 @@
 
 from __future__ import annotations
 
-
 import numpy as np
 
+from benchmarks import best_time
 from ga.evaluator import evaluate_population, evaluate_python, trace_counts
 from ga.genome import N_ROWS
 from ga.motions import REFLEX_STATES
 from ga.truth_table import truth_tables
 from ga.world_model import WorldModel
-from benchmarks import best_time
 
 SEED = 2026
 POPULATION = 500

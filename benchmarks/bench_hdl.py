@@ -94,8 +94,8 @@ if cocotb is not None:
 
 
 def cocotb_figures(simulator: str = "icarus") -> dict:
-    from cosim.launch.cocotb_sim import write_system_verilog
     from cosim.boards.cocotb_run import REPO_ROOT, run_cocotb
+    from cosim.launch.cocotb_sim import write_system_verilog
 
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "bench.json"

@@ -75,11 +75,25 @@ from ga.evaluator import EvalResult, evaluate_population
 from ga.fail_rates import RATE_ONE, prior_codes
 from ga.genome import LITERAL_MASK, N_ROWS, OUTPUT_MASK, OUTPUT_SHIFT, ROW_DTYPE, validate_rows
 from ga.motions import MAX_MOTION_DISTANCE_MM, N_STATES, OBSTACLE_MASK
-from ga.operators import DEFAULT_LITERAL_P, CONTRADICTION, DONT_CARE, NEGATIVE, POSITIVE, row_fires, row_outputs
+from ga.operators import CONTRADICTION, DEFAULT_LITERAL_P, DONT_CARE, NEGATIVE, POSITIVE, row_fires, row_outputs
 from ga.world_model import WorldModel
 from ga.xorshift import (  # noqa: F401  (the random source; re-exported for hdl.learner*, tests)
-    GENERATORS, MASK32, ROW0, ROW1, ROW2, ROW3, ROW4, ROW5, ROW_GENERATORS, SEED_FALLBACK, SEL, lane_seeds, seed_salt,
-    xorshift32, xorshift_stream)
+    GENERATORS,
+    MASK32,
+    ROW0,
+    ROW1,
+    ROW2,
+    ROW3,
+    ROW4,
+    ROW5,
+    ROW_GENERATORS,
+    SEED_FALLBACK,
+    SEL,
+    lane_seeds,
+    seed_salt,
+    xorshift32,
+    xorshift_stream,
+)
 
 # Fields of the words (one word per generator per draw): the HDL slices the same bits.
 FIELD16_SHIFT = 16  # bits 16..31: the 16-bit field compared with a threshold / scaled to an index

@@ -1,93 +1,28 @@
-"""The learning engine (``hdl.learner.Learner``) in Amaranth's simulator: its host side
-(:class:`LearnerSimHost`) and a whole run (:func:`simulate_learning`), for the tests."""
+"""The learning engine (``hdl.learner.Learner``) in Amaranth's simulator: a whole run
+(:func:`simulate_learning`), for the tests, driven by the one host driver of the engine's ports
+(``hdl.learning_system_top.LearnerHost``, the same the learning boards use)."""
 
 from __future__ import annotations
 
 from ga import hardware_ga as hg
-from ga.genome import N_ROWS
 from hdl.learner import Learner
+from hdl.learning_system_top import LearnerHost
+from hdl.ports import AmaranthPins
 
 
-class LearnerSimHost:
-    """The host side of the learner's ports in Amaranth's simulator (testbench context ``ctx``)."""
+class _CountingPins(AmaranthPins):
+    """Amaranth pins that count the clock edges (a learn's edges from its start strobe to done)."""
 
-    def __init__(self, ctx, dut: Learner):
-        from hdl.evaluator_sim import EvaluatorSimHost
+    cycle = 0
 
-        self.ctx, self.dut = ctx, dut
-        self.model_host = EvaluatorSimHost(ctx, dut)  # the same model/state ports and ready
-        self.cycle = 0
-
-    async def tick(self):
-        await self.ctx.tick()
+    async def tick(self) -> None:
+        await super().tick()
         self.cycle += 1
-        self.model_host.cycle = self.cycle
 
-    async def wait_ready(self):
-        while not self.ctx.get(self.dut.ready):
-            await self.tick()
-
-    async def write_model(self, model):
-        await self.model_host.write_model(model)
-        self.cycle = self.model_host.cycle
-
-    async def observe(self, model, state, motion, next_state, crashed):
-        await self.model_host.observe(model, state, motion, next_state, crashed)
-        self.cycle = self.model_host.cycle
-
-    async def write_rates(self, changes):
-        """Failure-rate codes (``ga.fail_rates``): one (state, motion, code) a cycle, every lane."""
-        await self.model_host.write_rates(changes)
-        self.cycle = self.model_host.cycle
-
-    async def seed(self, seed: int):
-        self.ctx.set(self.dut.seed, int(seed))
-        self.ctx.set(self.dut.seed_we, 1)
+    async def wait(self, name: str) -> None:
         await self.tick()
-        self.ctx.set(self.dut.seed_we, 0)
-
-    async def write_population(self, population):
-        ctx, dut = self.ctx, self.dut
-        for i, genome in enumerate(population):
-            for r, word in enumerate(genome):
-                ctx.set(dut.pop_index, i)
-                ctx.set(dut.pop_row, r)
-                ctx.set(dut.pop_data, int(word))
-                ctx.set(dut.pop_we, 1)
-                await self.tick()
-        ctx.set(dut.pop_we, 0)
-
-    async def read_genome(self, index: int) -> list[int]:
-        ctx, dut = self.ctx, self.dut
-        rows = []
-        for r in range(N_ROWS):  # the edge samples the address; the data is there after it
-            ctx.set(dut.pop_index, index)
-            ctx.set(dut.pop_row, r)
+        while not self.get(name):
             await self.tick()
-            rows.append(ctx.get(dut.pop_rdata))
-        return rows
-
-    async def learn(self, generations: int, reflex: bool = True, avoid=None):
-        """Run ``generations`` passes. Returns (download index, (crashes, loops, distance), fails,
-        score, cycles register, clock edges from the start strobe to done); the download is the
-        escape child when ``avoid`` = (state, motion) is given and one exists, else the best."""
-        ctx, dut = self.ctx, self.dut
-        ctx.set(dut.reflex_en, int(reflex))
-        ctx.set(dut.avoid_en, int(avoid is not None))
-        if avoid is not None:
-            ctx.set(dut.avoid_state, int(avoid[0]))
-            ctx.set(dut.avoid_motion, int(avoid[1]))
-        ctx.set(dut.generations, generations)
-        ctx.set(dut.start, 1)
-        first = self.cycle
-        await self.tick()
-        ctx.set(dut.start, 0)
-        while not ctx.get(dut.done):
-            await self.tick()
-        kind = "escape" if avoid is not None and ctx.get(dut.escape_found) else "best"
-        get = lambda name: ctx.get(getattr(dut, f"{kind}_{name}"))  # noqa: E731
-        counts = (get("crashes"), get("loops"), get("distance"))
-        return get("index"), counts, get("fails"), get("score"), ctx.get(dut.cycles), self.cycle - first
 
 
 def simulate_learning(config: hg.HardwareGAConfig, seed: int, population, phases,
@@ -105,7 +40,8 @@ def simulate_learning(config: hg.HardwareGAConfig, seed: int, population, phases
     out = []
 
     async def testbench(ctx):
-        host = LearnerSimHost(ctx, dut)
+        pins = _CountingPins(dut, ctx)
+        host = LearnerHost(pins, prefix="")
         await host.wait_ready()
         await host.seed(seed)
         await host.write_population(population)
@@ -115,7 +51,9 @@ def simulate_learning(config: hg.HardwareGAConfig, seed: int, population, phases
             for obs in observations:
                 await host.observe(mirror, *obs)
             await host.write_rates(rates)
-            best, counts, fails, score, cycles, edges = await host.learn(generations, avoid=avoid)
+            first = pins.cycle
+            best, counts, fails, score, cycles, _ = await host.learn(generations, avoid=avoid)
+            edges = pins.cycle - first
             record = {"best_index": best, "counts": counts, "fails": fails, "score": score, "cycles": cycles,
                       "edges": edges, "n_states": mirror.n_states}
             if read_population:

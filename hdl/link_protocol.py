@@ -36,8 +36,7 @@ import subprocess
 import zlib
 
 from amaranth.hdl import Cat, Module, Mux, Signal, signed
-from amaranth.lib import crc, data, enum, wiring
-from amaranth.lib import stream
+from amaranth.lib import crc, data, enum, stream, wiring
 from amaranth.lib.wiring import In, Out
 
 from ga.fail_rates import RATE_BITS

@@ -50,8 +50,14 @@ from ga.motions import DEFAULT_DISTANCE_RULE, N_INPUTS, N_OUTPUTS
 from hdl.and_or_array import _check_positive
 from hdl.controller_ehw import ControllerEHW
 from hdl.evaluator_ehw import COUNT_BITS, EvaluatorEHW
-from hdl.ports import (RESULT_LAYOUT, ModelWriteSignature, RateWriteSignature, RowWriteSignature,  # noqa: F401
-                       unpack_result, write_rows)
+from hdl.ports import (  # noqa: F401
+    RESULT_LAYOUT,
+    ModelWriteSignature,
+    RateWriteSignature,
+    RowWriteSignature,
+    unpack_result,
+    write_rows,
+)
 
 P_MAX = 512  # controllers per stream: the paper's population of 500 fits in one
 RESULT_BITS = RESULT_LAYOUT.size  # crashes | loops | distance | fails = 50 bits

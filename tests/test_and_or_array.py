@@ -16,9 +16,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import vectors
 from amaranth.sim import Simulator
 
-import vectors
 from ga.genome import GENOME_BITS, int_from_rows
 from ga.motions import N_INPUTS, N_OUTPUTS, N_STATES
 from ga.truth_table import truth_tables

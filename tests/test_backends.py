@@ -144,9 +144,10 @@ def test_stream_cycle_model_matches_the_hdl():
     import sys
 
     sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from test_evaluator_cases import random_model, specific_rows
+
     from cosim.boards.amaranth_backend import AmaranthSystem
     from cosim.boards.hardware_time import stream_cycles
-    from test_evaluator_cases import random_model, specific_rows
 
     system = AmaranthSystem()
     host = system.host
@@ -180,8 +181,8 @@ def test_cocotb_backend_outside_the_simulator_says_how_to_start_it():
 @pytest.mark.cocotb
 def test_cocotb_system_top_matches_reference(tmp_path):
     from cosim.boards.cocotb_backend import P_MAX_ENV
-    from cosim.launch.cocotb_sim import write_system_verilog
     from cosim.boards.cocotb_run import run_cocotb
+    from cosim.launch.cocotb_sim import write_system_verilog
 
     src = write_system_verilog(tmp_path, p_max=16)
     assert "initial \\$auto" in src.read_text()  # the time-0 fix (hdl.generate) found Yosys's trigger registers
@@ -196,11 +197,12 @@ def test_streamer_ignores_writes_and_go_while_busy():
     import sys
 
     sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from test_evaluator_cases import case_rates, random_model, rate_table, specific_rows
+
     from cosim.boards.amaranth_backend import AmaranthSystem
     from cosim.boards.hardware_time import stream_cycles
     from ga.evaluator import evaluate_population
     from hdl.system_top import genome_words, unpack_result
-    from test_evaluator_cases import case_rates, random_model, rate_table, specific_rows
 
     system = AmaranthSystem()
     host, pins = system.host, system.pins

@@ -14,10 +14,10 @@ import time
 from pathlib import Path
 
 import pytest
-
 from conftest import REPO_ROOT
-from cosim.cli.main import main as ehw_main
+
 from base.runs import LATEST, RunLock
+from cosim.cli.main import main as ehw_main
 
 TINY = ["--arena", "empty", "--targets", "1", "--population", "20", "--quiet", "--no-plots"]
 

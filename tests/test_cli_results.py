@@ -16,12 +16,12 @@ import time
 from pathlib import Path
 
 import pytest
+from conftest import REPO_ROOT
 from hypothesis import given, settings
 from hypothesis import strategies as st
-
-from conftest import REPO_ROOT
-from base.runs import LATEST
 from test_cli import _arena_file, _one_error, ehw  # noqa: F401  (the fixture)
+
+from base.runs import LATEST
 
 # A comparison of a second or two: the baseline on one seed, Q-learning capped at 200 interactions.
 SMALL = ["--seeds", "1", "--methods", "baseline,q-learning", "--shaping", "shaped",
@@ -265,8 +265,8 @@ def test_bench_keeps_every_run_and_merges_into_results_bench_json(ehw, tmp_path,
 
     monkeypatch.setattr(bench, "_names", lambda: ["bench_a", "bench_b"])
     figures = {"bench_a": {"a": 1}, "bench_b": {"b": 2}}
-    monkeypatch.setattr(bench.importlib, "import_module",
-                        lambda name: type("M", (), {"run": staticmethod(lambda: dict(figures[name.split('.')[-1]]))}))
+    monkeypatch.setattr(bench, "_load",
+                        lambda name: type("M", (), {"run": staticmethod(lambda: dict(figures[name]))}))
     root = tmp_path / "results/bench"
     assert ehw("bench", "bench_a")[0] == 0
     time.sleep(1.1)
@@ -320,8 +320,8 @@ def test_list_option_values_load_or_raise(value):
     lambda inner: st.one_of(st.lists(inner, max_size=3), st.dictionaries(st.text(max_size=4), inner, max_size=3)),
     max_leaves=8).map(lambda v: json.dumps({"per_seed": v}))))
 def test_compare_report_loader_loads_or_raises(tmp_path_factory, text):
-    from cosim.compare.options import read_report
     from base.errors import UserError
+    from cosim.compare.options import read_report
 
     path = tmp_path_factory.mktemp("cmp") / "compare.json"
     path.write_text(text)
@@ -335,8 +335,8 @@ def test_compare_report_loader_loads_or_raises(tmp_path_factory, text):
 @settings(max_examples=80, deadline=None)
 @given(items=st.lists(st.text(alphabet="abcdefghilnoqrsuw/-=,0123456789 ", max_size=20), max_size=3))
 def test_limit_seeds_parse_or_raise(items):
-    from cosim.compare.options import limits_of
     from base.errors import UserError
+    from cosim.compare.options import limits_of
 
     try:
         limits = limits_of(items)

@@ -10,6 +10,7 @@ from concurrent.futures import Executor, ProcessPoolExecutor
 import numpy as np
 import pytest
 
+from base.errors import UserError
 from cosim.compare.run import (
     DEFAULT_METHODS,
     METHODS,
@@ -21,7 +22,6 @@ from cosim.compare.run import (
     run_task,
     write_plot,
 )
-from base.errors import UserError
 from cosim.compare.sweep import Cache, executor, run_sweep
 from ga.genome import hex_from_rows
 from ga.operators import random_population
@@ -66,8 +66,8 @@ def test_report_medians_ranges_and_ratio(tmp_path):
 
 
 def test_fixed_controller_under_a_blinded_sensor_is_counted_and_blind():
-    from ga.truth_table import truth_tables
     from ga.genome import rows_from_hex
+    from ga.truth_table import truth_tables
     from sim_world.course import run_course
     from sim_world.world import DEFAULT_NOISE, World
 

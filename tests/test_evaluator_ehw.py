@@ -15,16 +15,16 @@ import numpy as np
 import pytest
 from amaranth.hdl import Shape
 from amaranth.sim import Simulator
+from test_evaluator_cases import case_rates, cases, constant_rows, random_model, rate_table, specific_rows
 
 from ga.evaluator import evaluate_population
 from ga.fail_rates import PRIOR_CODE
+from ga.genome import N_ROWS
 from ga.motions import OBSTACLE_MASK
 from ga.world_model import WorldModel
 from hdl.evaluator_ehw import RAM_DEPTH, EvaluatorEHW
 from hdl.evaluator_sim import EvaluatorSimHost as SimHost
-from ga.genome import N_ROWS
 from hdl.ports import ModelEntry, ModelWriteSignature, RateWriteSignature, RowWriteSignature, write_rows
-from test_evaluator_cases import case_rates, cases, constant_rows, random_model, rate_table, specific_rows
 
 TB_DIR = Path(__file__).resolve().parent / "cocotb_tb"
 
@@ -330,8 +330,7 @@ def test_cocotb_verilog_forward_distance_rule_matches_reference(tmp_path):
     """The option distance_rule="forward" in the generated Verilog (the third way of the test above)."""
     from amaranth.back import verilog
 
-    from cosim.boards.cocotb_run import icarus_time_zero_fix
-    from cosim.boards.cocotb_run import run_cocotb
+    from cosim.boards.cocotb_run import icarus_time_zero_fix, run_cocotb
 
     src = tmp_path / "evaluator_ehw.v"
     text = verilog.convert(EvaluatorEHW(distance_rule="forward"), name="evaluator_ehw", emit_src=False)

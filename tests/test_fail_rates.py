@@ -7,11 +7,21 @@ import pytest
 
 from cosim.online.run import OnlineConfig, make_run
 from ga.evaluator import EvalResult, evaluate_population, fitness
-from ga.fail_rates import (HORIZON, PRIOR_CODE, PROGRESS_STEPS, RATE_ONE, W_FAIL, FailureMarks, fail_counts,
-                           mirror_pooled, prior_codes, progress_codes, rate_codes)
+from ga.fail_rates import (
+    HORIZON,
+    PRIOR_CODE,
+    PROGRESS_STEPS,
+    RATE_ONE,
+    W_FAIL,
+    FailureMarks,
+    fail_counts,
+    mirror_pooled,
+    prior_codes,
+    progress_codes,
+    rate_codes,
+)
 from ga.hardware_ga import score
-from ga.motions import (MAX_MOTION_DISTANCE_MM, MIRROR_MOTION, MIRROR_STATE, N_MOTIONS, N_STATES, OBSTACLE_MASK,
-                        Motion)
+from ga.motions import MAX_MOTION_DISTANCE_MM, MIRROR_MOTION, MIRROR_STATE, N_MOTIONS, N_STATES, OBSTACLE_MASK, Motion
 from ga.operators import random_population
 from ga.truth_table import truth_tables
 from ga.world_model import WorldModel

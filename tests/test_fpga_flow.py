@@ -17,8 +17,14 @@ import pytest
 
 from cosim.boards.hardware_time import CLOCK_HZ, measured_clock
 from hdl import fpga
-from hdl.fpga import (FpgaError, parse_nextpnr_log_utilisation, parse_nextpnr_report, parse_yosys_stat,
-                      timing_line, write_results)
+from hdl.fpga import (
+    FpgaError,
+    parse_nextpnr_log_utilisation,
+    parse_nextpnr_report,
+    parse_yosys_stat,
+    timing_line,
+    write_results,
+)
 
 # trimmed from build/fpga/icebreaker-controller/top.report.json (nextpnr-ice40 0.11.1)
 ICE40_REPORT = {

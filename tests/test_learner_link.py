@@ -12,21 +12,31 @@ import json
 
 import numpy as np
 import pytest
+from link_sim import AmaranthSerial
 
 from cosim.boards.reference import ReferenceLearningBoard
-from cosim.online.learning_phase import hardware_ga_config
 from cosim.link.boards import LinkControllerBoard
 from cosim.link.host import LinkClient, LinkError, pack, unpack
 from cosim.link.learning import LinkLearningBoard
+from cosim.online.learning_phase import hardware_ga_config
 from cosim.online.run import OnlineConfig, make_run
 from ga import hardware_ga as hg
 from ga.motions import OBSTACLE_MASK
 from ga.operators import random_population
 from hdl.learner_link import LearnerLinkTop
-from hdl.link_protocol import (CRC_BYTES, HEADER_BYTES, LEARN_REPLY, LEARN_REQUEST, LOAD_GENOME_REQUEST,
-                               OBSERVE_REQUEST, RATE_REQUEST, READ_GENOME_REQUEST, Command, genome_bytes,
-                               layout_bytes)
-from link_sim import AmaranthSerial
+from hdl.link_protocol import (
+    CRC_BYTES,
+    HEADER_BYTES,
+    LEARN_REPLY,
+    LEARN_REQUEST,
+    LOAD_GENOME_REQUEST,
+    OBSERVE_REQUEST,
+    RATE_REQUEST,
+    READ_GENOME_REQUEST,
+    Command,
+    genome_bytes,
+    layout_bytes,
+)
 
 CLK, BAUD = 1e6, 250_000  # divisor 4: the fastest the UART runs
 CONFIG = hg.HardwareGAConfig(population=6, tournament=2, lanes=2, literal_rate=0.05, output_rate=0.1,

@@ -4,10 +4,9 @@ hardware; the on-line run's --ga hardware option."""
 
 import pytest
 
-from cosim.online.run import OnlineConfig, make_run
 from cosim.cli.online import main
+from cosim.online.run import OnlineConfig, make_run
 from ga.fail_rates import PRIOR_CODE
-
 
 # A short lifetime of --ga hardware with the failure rates (3 targets, 6 learning phases, escapes:
 # the codes written to every lane before each phase after a failure) on every backend (seed 42 since

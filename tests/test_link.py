@@ -21,12 +21,23 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from cosim.link.host import (LinkClient, LinkError, encode_frame, genome_payload, pack, unpack)
-from hdl.link_protocol import (CRC_BYTES, HEADER_BYTES, LINK_CRC, REQUEST_LENGTH, RESULT_BYTES, RESULT_REPLY,
-                               SYNC, Command, FrameHeader, Status, genome_bytes)
-from hdl.link_tops import ControllerLinkTop, EvaluatorLinkTop
 from link_sim import AmaranthSerial, FaultyStream
+
+from cosim.link.host import LinkClient, LinkError, encode_frame, genome_payload, pack, unpack
+from hdl.link_protocol import (
+    CRC_BYTES,
+    HEADER_BYTES,
+    LINK_CRC,
+    REQUEST_LENGTH,
+    RESULT_BYTES,
+    RESULT_REPLY,
+    SYNC,
+    Command,
+    FrameHeader,
+    Status,
+    genome_bytes,
+)
+from hdl.link_tops import ControllerLinkTop, EvaluatorLinkTop
 
 TB_DIR = Path(__file__).resolve().parent / "cocotb_tb"
 CLK, BAUD = 1e6, 250_000  # divisor 4: the fastest the UART runs
@@ -151,11 +162,12 @@ def test_damaged_controller_frame_is_never_committed():
 
 
 def test_single_buffered_evaluator_top_matches_the_reference():
+    from test_evaluator_cases import constant_rows
+
     from cosim.boards.reference import ReferenceEvaluatorBoard
     from cosim.link.boards import LinkEvaluatorBoard
     from ga.evaluator import evaluate_population
     from ga.fail_rates import RATE_ONE, prior_codes
-    from test_evaluator_cases import constant_rows
 
     client, line = _client(EvaluatorLinkTop(CLK, BAUD, double_buffer=False, timeout_s=1e-4), 20_000)
     line.run_cycles(2100)  # the evaluator sweeps its RAM after reset
@@ -204,8 +216,7 @@ def test_link_counters_add_with_carries_across_bytes():
     from amaranth.sim import Simulator
 
     from hdl.link_counters import COUNTERS_BASE, IDENTIFY_BASE, LinkCounters
-    from hdl.link_protocol import COUNTERS_REPLY, IDENTIFY_REPLY
-    from hdl.link_protocol import layout_bytes
+    from hdl.link_protocol import COUNTERS_REPLY, IDENTIFY_REPLY, layout_bytes
 
     rng = np.random.default_rng(SEED)
     identity = bytes(rng.integers(0, 256, layout_bytes(IDENTIFY_REPLY), dtype=np.uint8))
@@ -279,8 +290,8 @@ def test_truncated_frame_is_answered_and_dropped():
 @pytest.mark.verilator
 def test_uart_backend_short_run_equals_reference_and_faults(tmp_path, monkeypatch):
     from cosim.boards.cocotb_run import run_cocotb
-    from cosim.online.run import OnlineConfig, make_run
     from cosim.launch.uart_sim import TOPLEVEL, prepare_uart_run
+    from cosim.online.run import OnlineConfig, make_run
     from hdl.uart import max_baud
 
     # 10 generations, 119 interactions, crash, loop and time-out phases, the failure rates on (rate

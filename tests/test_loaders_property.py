@@ -86,8 +86,8 @@ def test_config_loader_loads_or_raises_config_error(tmp_path_factory, raw):
     """Any key/value mapping: the checked values, or a ConfigFileError; what loads gives the
     run's OnlineConfig (as ``ehw sim --config`` builds it), or a UserError naming the field."""
     import cosim.cli.main
-    from cosim.online.run import OnlineConfig
     from cosim.cli.commands import online_config
+    from cosim.online.run import OnlineConfig
 
     path = tmp_path_factory.mktemp("cfg") / "run.json"
     path.write_text(json.dumps({"config": raw}))

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from ga.genome import N_ROWS
 from cosim.offline.run import evaluate
+from ga.genome import N_ROWS
 from ga.model_free import max_run_steps, model_free_fitness
 from ga.motions import Motion
 from sim_world.world import World

@@ -5,8 +5,8 @@ import json
 import numpy as np
 import pytest
 
-from cosim.offline.run import default_ga_config, run_offline
 from cosim.offline.noisy import NoisyRun, NoisyStage, Records, drive_noisy, noise_seeds, table_key
+from cosim.offline.run import default_ga_config, run_offline
 from ga.motions import Motion
 from sim_world.course import run_course
 from sim_world.world import DEFAULT_NOISE, World

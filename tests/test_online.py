@@ -9,10 +9,10 @@ import pytest
 
 from cosim.boards.reference import ReferenceControllerBoard, ReferenceEvaluatorBoard
 from cosim.boards.registry import make_boards
-from cosim.online.run import OnlineConfig, OnlineRun, make_run
-from cosim.online.config import option
 from cosim.cli.online import build_parser, config_from_args, main
+from cosim.online.config import option
 from cosim.online.report import adaptation_figures, summary_table
+from cosim.online.run import OnlineConfig, OnlineRun, make_run
 from ga.genome import validate_rows
 from ga.motions import OBSTACLE_MASK
 from ga.operators import random_population

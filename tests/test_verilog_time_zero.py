@@ -118,6 +118,7 @@ def test_generated_top_has_no_x_from_reset_in_icarus(tmp_path, top, generation):
 def test_without_the_fix_icarus_shows_the_x(tmp_path):
     """The check sees the problem the fix removes: Amaranth's Verilog as it comes reads X."""
     from amaranth.back import verilog
+
     from hdl.generate import build_block
 
     raw = verilog.convert(build_block("controller_ehw"), name="controller_ehw", emit_src=False)

@@ -28,19 +28,15 @@ import time
 
 import numpy as np
 
-from cosim.boards.interfaces import EvalCounts
-from cosim.boards.reference import ReferenceControllerBoard, ReferenceEvaluatorBoard
-from cosim.boards.registry import register_backend
 from cosim.boards.hardware_time import CLOCK_HZ
+from cosim.boards.interfaces import BoardMismatch, EvalCounts
+from cosim.boards.reference import ReferenceControllerBoard, ReferenceEvaluatorBoard, checked_motion
+from cosim.boards.registry import register_backend
 from ga.motions import DEFAULT_DISTANCE_RULE
 from hdl.ports import AmaranthPins
 
 IDLE_S = 1e-12  # the serving testbench's wait between jobs: far below a clock period
 SIM_PERIOD_S = 1 / CLOCK_HZ  # the simulated clock (the hardware time uses EHW_CLOCK_HZ)
-
-
-class BoardMismatch(AssertionError):
-    """An HDL board disagreed with the reference model."""
 
 
 class SimulatorJobs:
@@ -213,15 +209,8 @@ class HDLControllerBoard:
             self.reference.set_reflex(enabled)
 
     def motion(self, state: int) -> int:
-        if not 0 <= int(state) < 256:
-            raise ValueError(f"a world state is in 0..255, got {state!r}")
-        motion = self.system.call(self.host.motion, int(state))
-        if self.reference is not None:
-            expected = self.reference.motion(state)
-            if motion != expected:
-                raise BoardMismatch(f"controller board: motion {motion} in state {state}, "
-                                    f"the reference gives {expected}")
-        return motion
+        return checked_motion(lambda s: self.system.call(self.host.motion, s), state, self.reference,
+                              "controller board")
 
 
 SAMPLE_ENV = "EHW_HDL_SAMPLE"
@@ -291,8 +280,8 @@ class HDLEvaluatorBoard:
             self.reference.write_rates(changes)
 
     def evaluate(self, population: np.ndarray) -> EvalCounts:
-        from ga.genome import validate_rows
         from cosim.boards.hardware_time import stream_cycles
+        from ga.genome import validate_rows
 
         population = validate_rows(population)
         if population.ndim != 2:

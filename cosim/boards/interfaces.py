@@ -62,6 +62,10 @@ class EvaluatorBoard(Protocol):
 
 
 
+class BoardMismatch(AssertionError):
+    """A board (HDL, or behind the link) disagreed with the reference model."""
+
+
 class BackendUnavailable(UserError, RuntimeError):
     """A board backend that is named in SPEC section 9 but not installed in this checkout yet."""
 

@@ -11,7 +11,7 @@ import time
 
 import numpy as np
 
-from cosim.boards.interfaces import EvalCounts, LearnResult
+from cosim.boards.interfaces import BoardMismatch, EvalCounts, LearnResult
 from ga.motions import DEFAULT_DISTANCE_RULE
 
 
@@ -86,6 +86,19 @@ class ReferenceEvaluatorBoard:
         self.time_s += time.process_time() - t0
         return EvalCounts(crashes=np.asarray(result.crashes), loops=np.asarray(result.loops),
                           distance=np.asarray(result.distance), fails=np.asarray(result.fails))
+
+
+def checked_motion(read, state: int, reference, where: str, error=BoardMismatch) -> int:
+    """The motion ``read(state)`` of a controller board, checked against its ``reference`` board
+    (None: unchecked); a difference raises ``error`` naming ``where`` (the HDL and link boards)."""
+    if not 0 <= int(state) < 256:
+        raise ValueError(f"a world state is in 0..255, got {state!r}")
+    motion = read(int(state))
+    if reference is not None:
+        expected = reference.motion(state)
+        if motion != expected:
+            raise error(f"{where}: motion {motion} in state {state}, the reference gives {expected}")
+    return motion
 
 
 class ReferenceLearningBoard:

@@ -11,12 +11,12 @@ import math
 import sys
 from pathlib import Path
 
-from cosim.cli.options import LINK_BACKENDS, RESULTS, add_hdl_options, hdl_environment, resolve_hdl_settings
-from base.options import PROG, add_common, fill_help, option_keys, write_config
 from base.errors import UserError
-from cosim.online.learning_phase import check_learning_backend
 from base.files import atomic_write_json
+from base.options import PROG, add_common, fill_help, option_keys, write_config
 from base.runs import open_run
+from cosim.cli.options import LINK_BACKENDS, RESULTS, add_hdl_options, hdl_environment, resolve_hdl_settings
+from cosim.online.learning_phase import check_learning_backend
 
 # -- sim: the on-line experiment ------------------------------------------------------------------
 

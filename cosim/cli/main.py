@@ -42,21 +42,21 @@ import sys
 from pathlib import Path
 from typing import Sequence
 
+from base.config_file import field_types
+from base.errors import ArgumentParser, UserError, run_main
 from base.options import (
     PROG,
     HelpFormatter,
     add_common,
-    option_keys,
     apply_config_file,
+    option_keys,
     resume_config,
     write_config,
 )
+from base.runs import RunLock, open_run
+from cosim.cli.commands import SIM_DEST_OF, SIM_RUN_OPTIONS, cmd_offline, cmd_sim, offline_parser, sim_parser
 from cosim.cli.options import RESULTS, resolve_hdl_settings
 from cosim.compare.options import COMPARE_ROOT
-from base.config_file import field_types
-from base.errors import ArgumentParser, UserError, run_main
-from cosim.cli.commands import SIM_DEST_OF, SIM_RUN_OPTIONS, cmd_offline, cmd_sim, offline_parser, sim_parser
-from base.runs import RunLock, open_run
 
 # -- the other subcommands ------------------------------------------------------------------------
 

@@ -16,11 +16,11 @@ import argparse
 import sys
 from pathlib import Path
 
-from cosim.boards.registry import BACKENDS, launcher
 from base.errors import UserError
+from cosim.boards.registry import BACKENDS, launcher
+from cosim.online.config import LOOP_BLAMES, OnlineConfig
 from cosim.online.learning_phase import check_learning_backend
 from cosim.online.run import make_run
-from cosim.online.config import LOOP_BLAMES, OnlineConfig
 from ga.motions import DISTANCE_RULES
 
 DEFAULT_OUT = Path("results/model_based")

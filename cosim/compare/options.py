@@ -19,8 +19,8 @@ import json
 import math
 from pathlib import Path
 
-from cosim.compare.report import DEEP, DEFAULT_METHODS, METHODS, N_TARGETS, OPTIONAL, SHAPINGS, TABULAR
 from base.errors import UserError
+from cosim.compare.report import DEEP, DEFAULT_METHODS, METHODS, N_TARGETS, OPTIONAL, SHAPINGS, TABULAR
 
 COMPARE_ROOT = Path("results/compare")
 CACHE = COMPARE_ROOT / "cache"

@@ -51,16 +51,35 @@ from pathlib import Path
 
 import numpy as np
 
-from cosim.compare.options import (  # noqa: F401  (online_options: re-exported)
-    COMPARE_ROOT, add_arguments, check_args, check_resumed, online_options, read_report, recorded_options,
-)
 from base.errors import UserError
 from base.files import atomic_write_text
-from cosim.compare.report import (  # noqa: F401  (re-exported: the names of cosim.compare.run)
-    ADAPT_WINDOW, DEEP, DEFAULT_METHODS, METHODS, N_TARGETS, NAMES, OPTIONAL, PAPER, ROWS, SHAPINGS, TABULAR,
-    _seed_text, build_report, display_name, markdown, write_plot,
+from cosim.compare.options import (  # noqa: F401  (online_options: re-exported)
+    COMPARE_ROOT,
+    add_arguments,
+    check_args,
+    check_resumed,
+    online_options,
+    read_report,
+    recorded_options,
 )
-
+from cosim.compare.report import (  # noqa: F401  (re-exported: the names of cosim.compare.run)
+    ADAPT_WINDOW,
+    DEEP,
+    DEFAULT_METHODS,
+    METHODS,
+    N_TARGETS,
+    NAMES,
+    OPTIONAL,
+    PAPER,
+    ROWS,
+    SHAPINGS,
+    TABULAR,
+    _seed_text,
+    build_report,
+    display_name,
+    markdown,
+    write_plot,
+)
 
 # -- one lifetime per method (the only call sites of the runners) -----------------------------
 
@@ -77,8 +96,8 @@ def _effective_online(arena: str, online: dict | None) -> dict:
 
 
 def _online(task: dict) -> dict:
-    from cosim.online.run import OnlineConfig, make_run
     from cosim.online.report import write_results
+    from cosim.online.run import OnlineConfig, make_run
 
     config = OnlineConfig(seed=task["seed"], arena=task["config"]["arena"], **task["config"]["online"])
     out = Path(task["out"]) / "model_based" / f"seed_{task['seed']}"
@@ -226,8 +245,8 @@ def fixed_controller_adaptation(genome_hex: str, arena: str, seed: int, bit: int
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from base.options import HelpFormatter
     from base.errors import ArgumentParser
+    from base.options import HelpFormatter
 
     return add_arguments(ArgumentParser(prog="python -m cosim.compare.run", description=__doc__.split("\n")[0],
                                         formatter_class=HelpFormatter))
@@ -331,8 +350,8 @@ def _compare(args, folder: Path) -> dict:
     report = build_report(results, args.arena, seeds)
     report["online_distance_rule"] = args.distance
     report["online_options"] = online
-    from peers.tabular import TUNED, TUNING_SEEDS
     from peers.deep import TUNED as DEEP_TUNED
+    from peers.tabular import TUNED, TUNING_SEEDS
 
     if any(r.partition("/")[0] in TABULAR + DEEP for r in results):
         used = sorted(set(seeds) & set(TUNING_SEEDS))
@@ -369,8 +388,8 @@ def _compare(args, folder: Path) -> dict:
 
 def main(argv=None) -> int:
     """``python -m cosim.compare.run``: the same options and checks as ``ehw compare`` (no --config)."""
-    from base.options import apply_config_file, resume_config
     from base.errors import run_main
+    from base.options import apply_config_file, resume_config
 
     def run(argv):
         parser = build_parser()

@@ -22,9 +22,9 @@ from pathlib import Path
 
 from cosim.boards.amaranth_backend import SAMPLE_ENV
 from cosim.boards.cocotb_backend import CLOCK_INSIDE_ENV, CLOCK_PERIOD_NS
-from cosim.launch.lifetime import launch_env, prepare_out, print_summary, run_in_simulator
 from cosim.boards.cocotb_run import SIM_BUILD, icarus_time_zero_fix, simulator_default
 from cosim.boards.hardware_time import hardware_line
+from cosim.launch.lifetime import launch_env, prepare_out, print_summary, run_in_simulator
 from ga.motions import DEFAULT_DISTANCE_RULE
 
 TOPLEVEL = "system_top"

@@ -31,8 +31,8 @@ import os
 
 import numpy as np
 
-from cosim.boards.interfaces import EvalCounts
-from cosim.boards.reference import ReferenceControllerBoard, ReferenceEvaluatorBoard
+from cosim.boards.interfaces import BoardMismatch, EvalCounts
+from cosim.boards.reference import ReferenceControllerBoard, ReferenceEvaluatorBoard, checked_motion
 from cosim.boards.registry import register_backend
 from cosim.link.host import RETRIES, LinkClient, LinkError, NotLoaded
 from ga.motions import DEFAULT_DISTANCE_RULE
@@ -43,7 +43,7 @@ PORT_ENV, PORT2_ENV, BAUD_ENV = "EHW_PORT", "EHW_PORT2", "EHW_BAUD"
 SERIAL_TIMEOUT_S = 1.0  # a reply takes < 30 ms at 115,200 baud (the longest: 255 bytes + EVALUATE)
 
 
-class LinkMismatch(AssertionError):
+class LinkMismatch(BoardMismatch):
     """A board behind the link disagreed with the reference model."""
 
 
@@ -72,15 +72,7 @@ class LinkControllerBoard:
             self.reference.set_reflex(enabled)
 
     def motion(self, state: int) -> int:
-        if not 0 <= int(state) < 256:
-            raise ValueError(f"a world state is in 0..255, got {state!r}")
-        motion = self.client.motion(int(state))
-        if self.reference is not None:
-            expected = self.reference.motion(state)
-            if motion != expected:
-                raise LinkMismatch(f"{self.client.port}: motion {motion} in state {state}, "
-                                   f"the reference gives {expected}")
-        return motion
+        return checked_motion(self.client.motion, state, self.reference, self.client.port, LinkMismatch)
 
 
 class LinkModelBoard:

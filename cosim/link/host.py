@@ -22,13 +22,32 @@ from dataclasses import dataclass, field
 from amaranth.lib import data
 
 from base.errors import UserError
-
-from hdl.link_protocol import (COUNTERS_REPLY, CRC_BYTES, EVALUATE_REPLY, EVALUATE_REQUEST,
-                               HEADER_BYTES, IDENTIFY_REPLY, LINK_CRC, LOAD_GENOME_REQUEST,
-                               MOTION_REPLY, MOTION_REQUEST, NAME_BYTES, OBSERVE_REQUEST,
-                               RATE_REQUEST, READ_RESULTS_REQUEST, REFLEX_REQUEST, RESULT_BYTES,
-                               RESULT_REPLY, RESULTS_PER_READ, SYNC, Command, Design, FrameHeader,
-                               Status, genome_bytes)
+from hdl.link_protocol import (
+    COUNTERS_REPLY,
+    CRC_BYTES,
+    EVALUATE_REPLY,
+    EVALUATE_REQUEST,
+    HEADER_BYTES,
+    IDENTIFY_REPLY,
+    LINK_CRC,
+    LOAD_GENOME_REQUEST,
+    MOTION_REPLY,
+    MOTION_REQUEST,
+    NAME_BYTES,
+    OBSERVE_REQUEST,
+    RATE_REQUEST,
+    READ_RESULTS_REQUEST,
+    REFLEX_REQUEST,
+    RESULT_BYTES,
+    RESULT_REPLY,
+    RESULTS_PER_READ,
+    SYNC,
+    Command,
+    Design,
+    FrameHeader,
+    Status,
+    genome_bytes,
+)
 
 RETRIES = 3  # resends of one request after an error reply or a timeout
 PIPELINE = 2  # LOAD_GENOME frames in flight (the board answers one while the next arrives)

@@ -23,8 +23,16 @@ from cosim.boards.interfaces import LearnResult
 from cosim.boards.reference import ReferenceLearningBoard, checked_state_dict
 from cosim.link.boards import LinkControllerBoard, LinkMismatch, LinkModelBoard
 from cosim.link.host import LinkClient, LinkError, pack, unpack
-from hdl.link_protocol import (LEARN_REPLY, LEARN_REQUEST, READ_GENOME_REQUEST, SEED_REQUEST, Command,
-                               Design, genome_bytes, layout_bytes)
+from hdl.link_protocol import (
+    LEARN_REPLY,
+    LEARN_REQUEST,
+    READ_GENOME_REQUEST,
+    SEED_REQUEST,
+    Command,
+    Design,
+    genome_bytes,
+    layout_bytes,
+)
 
 MAX_GENERATIONS = (1 << LEARN_REQUEST["generations"].width) - 1  # 4095
 

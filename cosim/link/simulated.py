@@ -17,7 +17,6 @@ Imports the link layer below it; the cocotb test that uses it is ``cosim.launch.
 from __future__ import annotations
 
 import logging
-import os
 
 from cosim.boards.registry import register_backend
 from ga.motions import DEFAULT_DISTANCE_RULE

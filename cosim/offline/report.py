@@ -6,13 +6,12 @@ from pathlib import Path
 
 import numpy as np
 
+from base.files import atomic_savefig
 from cosim.offline.noisy import load_arena_arg
 from cosim.paper import PAPER_OFFLINE as PAPER
-from base.files import atomic_savefig
 from ga.genome import rows_from_hex
 from ga.truth_table import truth_tables
 from sim_world.course import run_course
-
 
 # -- Figures -------------------------------------------------------------------------------------
 

@@ -42,14 +42,13 @@ from typing import Callable
 import numpy as np
 
 from base.checkpoint import load_checkpoint, save_checkpoint
+from base.files import atomic_savefig, atomic_write_json
 from cosim.offline.noisy import (ROBUST_MAX_LEG_STEPS, TRANSFER_TRIALS, NoisyStage, Records, add_noisy_arguments,
                                  final_race, load_arena_arg, noisy_generation, table_key, transfer)
 from cosim.offline.report import plot_results, seeds_table  # noqa: F401 (seeds_table: the API)
-from base.files import atomic_savefig, atomic_write_json
-from ga.evolution import GAConfig, GeneticAlgorithm
-from ga.genome import hex_from_rows, rows_from_hex
 from cosim.paper import PAPER_OFFLINE as PAPER
-from ga.genome import validate_rows
+from ga.evolution import GAConfig, GeneticAlgorithm
+from ga.genome import hex_from_rows, rows_from_hex, validate_rows
 from ga.model_free import N_TARGETS, max_run_steps, model_free_fitness
 from ga.truth_table import truth_tables
 from sim_world.course import run_course

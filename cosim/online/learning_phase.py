@@ -19,6 +19,7 @@ import numpy as np
 from ga.evaluator import EvalResult, fitness
 from ga.motions import OBSTACLE_MASK
 
+
 def hardware_ga_config(config):
     """The learning engine's parameters from an OnlineConfig."""
     from ga.hardware_ga import HardwareGAConfig
@@ -36,8 +37,8 @@ def hardware_seed(seed: int) -> int:
 
 def check_learning_backend(config, backend: str) -> None:
     """Refuse ``--ga hardware`` on a backend without a learning board (a user error)."""
-    from cosim.boards.registry import LEARNING_BACKENDS
     from cosim.boards.interfaces import BackendUnavailable
+    from cosim.boards.registry import LEARNING_BACKENDS
 
     if config.ga == "hardware" and backend not in LEARNING_BACKENDS:
         raise BackendUnavailable(f"--ga hardware runs on --backend {', '.join(LEARNING_BACKENDS)} (no "

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from cosim.paper import PAPER_ONLINE
 from base.files import atomic_savefig, atomic_write_json
+from cosim.paper import PAPER_ONLINE
 from ga.genome import hex_from_rows
 
 

@@ -41,12 +41,11 @@ from pathlib import Path
 
 import numpy as np
 
-from cosim.boards.interfaces import BackendUnavailable
-from cosim.boards.registry import learning_top_drives, make_boards, make_learning_boards
 from base.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
+from cosim.boards.registry import BackendUnavailable, learning_top_drives, make_boards, make_learning_boards
+from cosim.online.config import OnlineConfig
 from cosim.online.download import choose_download
 from cosim.online.failures import Track, blame, blame_cycle
-from cosim.online.config import OnlineConfig
 from ga.diversity import diversity
 from ga.evaluator import fitness as model_fitness
 from ga.evolution import GeneticAlgorithm

@@ -16,6 +16,7 @@ from cocotb.triggers import Timer
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # tests/, for vectors
 
 import vectors  # noqa: E402
+
 from ga.genome import int_from_rows  # noqa: E402
 from ga.motions import N_STATES  # noqa: E402
 from ga.truth_table import truth_tables  # noqa: E402

@@ -29,13 +29,14 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # tests/, for link_sim
 
+from link_sim import FaultyStream  # noqa: E402
+
+from cosim.launch.lifetime import CONFIG_ENV  # noqa: E402
 from cosim.link.boards import LinkControllerBoard, LinkEvaluatorBoard  # noqa: E402
 from cosim.link.host import RETRIES, LinkClient, LinkError, pack  # noqa: E402
-from cosim.launch.lifetime import CONFIG_ENV  # noqa: E402
 from cosim.link.simulated import SIM_CLK_HZ, host_timeout_s, start_top  # noqa: E402
 from ga.motions import DEFAULT_DISTANCE_RULE  # noqa: E402
 from hdl.link_protocol import LINK_CRC, SYNC, FrameHeader  # noqa: E402
-from link_sim import FaultyStream  # noqa: E402
 
 BAUD = float(os.environ.get("EHW_BAUD", SIM_CLK_HZ / 4))
 # the build's dist[a] rule: the short on-line run's, when this runs beside it

@@ -23,12 +23,13 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))  # tests/, for the shared cases
 
+from test_evaluator_cases import case_rates, cases, rate_table, specific_rows  # noqa: E402
+
 from cosim.boards.cocotb_backend import CocotbSystem  # noqa: E402
 from ga.evaluator import evaluate_population  # noqa: E402
 from ga.fail_rates import prior_codes  # noqa: E402
 from ga.truth_table import truth_tables  # noqa: E402
 from ga.world_model import WorldModel  # noqa: E402
-from test_evaluator_cases import case_rates, cases, rate_table, specific_rows  # noqa: E402
 
 
 def expected(pop, model, reflex, rates=None):
