@@ -33,19 +33,3 @@ def test_finished_seeds_are_not_run_again(tmp_path, capsys):
     assert "error: argument --seeds: expected FIRST-LAST or one seed, got '9-3'" in capsys.readouterr().err
 
 
-def test_ga_pairing_runs_both_gas_from_one_population(tmp_path):
-    """experiments/ga_pairing.py: one seed, one phase on each stored model; both GAs' best fitness
-    is a SPEC fitness in (0, 1] and the two differ by little on the same model."""
-    import importlib.util
-    from pathlib import Path
-
-    path = Path(__file__).resolve().parents[1] / "experiments" / "ga_pairing.py"
-    spec = importlib.util.spec_from_file_location("ga_pairing", path)
-    pairing = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(pairing)
-    out = tmp_path / "p.jsonl"
-    assert pairing.main(["--seeds", "3", "--phases", "1", "--out", str(out)]) == 0
-    rows = [json.loads(line) for line in out.read_text().splitlines()]
-    assert {r["model"] for r in rows} == {"100", "167"} and all(r["lanes"] == 7 for r in rows)
-    for r in rows:
-        assert 0 < r["host"][0] <= 1 and 0 < r["hardware"][0] <= 1 and abs(r["host"][0] - r["hardware"][0]) < 0.05
