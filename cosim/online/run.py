@@ -197,7 +197,7 @@ class OnlineRun:
     def extra_stop(self, steps: int, at_target: bool) -> str:
         """A reason to end the execution phase other than a failure, the last target or the budget,
         asked after each step (``at_target``: the step reached a target); '' = go on. None here: a
-        hook for experiments (experiments/online_round8.py: a phase at each target, every K steps)."""
+        hook for experiments (round 8 at tag research/round-18: a phase at each target, every K steps)."""
         return ""
 
     def blamed(self, detector) -> tuple[int, int]:
