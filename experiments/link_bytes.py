@@ -18,7 +18,7 @@ import resource
 import time
 from pathlib import Path
 
-from cosim.online.run import OnlineConfig
+from cosim.online.config import OnlineConfig
 
 SHORT = dict(seed=1, arena="one_obstacle", n_targets=2, population=6, tournament=2, lanes=2,
              generations_per_phase=2)

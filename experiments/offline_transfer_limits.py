@@ -17,11 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from cosim.offline.noisy import TRANSFER_TRIALS, _noisy_world, transfer  # noqa: E402
-from sim_world.baseline import baseline_table  # noqa: E402
-from sim_world.course import run_course  # noqa: E402
+from cosim.offline.noisy import TRANSFER_TRIALS, _noisy_world, transfer
+from sim_world.baseline import baseline_table
+from sim_world.course import run_course
 
 
 def baseline_fraction(arena: str, limit: int, n_targets: int, seed: int, trials: int) -> float:

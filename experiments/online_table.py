@@ -1,31 +1,27 @@
 """The on-line lifetime tables of docs/online.md: configurations x seeds -> one Markdown table.
 
     python experiments/online_table.py round5                       # the table of round 5
+    python experiments/online_table.py heldout                      # its held-out seeds 21-40
     python experiments/online_table.py round5 --seeds 1-5 --jobs 2  # part of it
-    python experiments/online_table.py round3 --seeds 1 --budget 500   # a smoke run (seconds)
+    python experiments/online_table.py round5 --seeds 1 --budget 500   # a smoke run (seconds)
     python experiments/online_table.py --list                       # the tables and their rows
 
 Each run is ``cosim.online.run.make_run(OnlineConfig(seed=S, max_interactions=BUDGET, **row)).run()``
-on the reference boards (what the rounds ran from scripts under the ignored build/ folder); a
-cell is the interactions to 64 targets, or "t @ B" when the budget B ran out first (counted as B
-in the medians, so those are lower bounds). Besides the table the script writes one JSON line
-per run (``--out``, default build/experiments/<table>.jsonl: the figures, the phase reasons and
-how often each failure detector stopped a leg) and reuses the lines already there, so an
-interrupted table goes on where it stopped.
+on the reference boards; a cell is the interactions to 64 targets, or "t @ B" when the budget B
+ran out first (counted as B in the medians, so those are lower bounds). Besides the table the
+script writes one JSON line per run (``--out``, default build/experiments/<table>.jsonl: the
+figures, the phase reasons and how often each failure detector stopped a leg) and reuses the
+lines already there, so an interrupted table goes on where it stopped.
 
-Rows whose options were measured and dropped (docs/online.md names them) hold the commit whose
-code has them: this script runs them there, e.g.
-``git worktree add /tmp/ehw-af766a7 af766a7 && cd /tmp/ehw-af766a7 && make venv &&
-.venv/bin/python /path/to/experiments/online_table.py round3 --dropped``; on the current code
-they are listed as skipped. Every row spells out distance_rule and loop_cycles, and runs with
-round 8's ``loop_blame`` "leg" (the only rule before it), so a table means the same at every commit. The worlds of rounds 1-2 were changed since (docs/online.md):
-their rows give other numbers on today's world.
+Every row spells out distance_rule and loop_cycles, and runs with the rules before issue 17's
+round 8 (``loop_blame`` "leg", no failure rates: ``BEFORE_ROUND8``), so a table means what it
+meant when it was measured. The tables of rounds 1, 2 and 4 and the rows of options measured and
+dropped are in this script at the tag ``research/round-18`` (docs/research-log.md).
 """
 
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import statistics
 import sys
@@ -33,41 +29,16 @@ from collections import Counter
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
-# The commit that still holds every dropped option (cosim/online/run.py before the lean loop), and them.
-DROPPED_AT = "af766a7"
-DROPPED = {"blame_phase_only", "loop_key", "loop_still_mm", "loop_patience", "loop_relax", "relax_window",
-           "escape_memory", "escape_spread", "escape_rewrite", "escape_credit", "loop_penalty",
-           "mark_loops", "mark_limit", "model_update", "download", "targeted"}
-
+# The rules of rounds 1-7 (issue 12's defaults): every row runs with them unless it says otherwise.
+BEFORE_ROUND8 = {"loop_blame": "leg", "fail_rates": False}
 # The first reading (the defaults before issue 12): the SPEC fitness as first written.
 FIRST = {"distance_rule": "covered", "loop_cycles": 0}
 ROUND3 = {**FIRST, "loop_window": 100, "loop_repeats": 4, "loop_reentries": 4, "loop_radius_mm": 80.0}
 W100 = {**FIRST, "loop_window": 100, "loop_repeats": 0, "loop_reentries": 0, "loop_radius_mm": 0.0}
+ISSUE12 = {**ROUND3, "distance_rule": "forward", "loop_cycles": 1}
 
 # name -> (what it is, seeds, budget, rows: (label, options)); options are OnlineConfig fields.
 TABLES = {
-    "round1": ("round 1: the exploratory runs (an earlier world)", "1-3", 20_000, [
-        ("SPEC as written, leg time-out 500, no loop detection", {**W100, "loop_window": 0, "escape": False}),
-        ("loop_window 100 + escape", W100),
-        ("loop_window 100 + escape + loop_repeats 4", {**W100, "loop_repeats": 4}),
-        ("loop_window 100 + escape + loop_repeats 3", {**W100, "loop_repeats": 3}),
-        ("loop_window 100 + escape + loop_repeats 5", {**W100, "loop_repeats": 5}),
-        ("loop_window 100 + escape, 20 generations a phase", {**W100, "generations_per_phase": 20}),
-        ("loop_window 100 + escape + mark_loops crash", {**W100, "mark_loops": "crash"}),
-        ("most_frequent + loop_window 60 + escape", {**W100, "loop_window": 60, "model_update": "most_frequent"}),
-        ("loop_window 100 + escape + loop_repeats 4 + targeted 50", {**W100, "loop_repeats": 4, "targeted": 50}),
-    ]),
-    "round2": ("round 2: the loop-detection search (defaults not changed)", "1-10", 30_000, [
-        ("default (SPEC, W = 100, escape)", W100),
-        ("lr4 g5", {**W100, "loop_repeats": 4, "generations_per_phase": 5}),
-        ("lr4 r6", {**W100, "loop_repeats": 4, "loop_reentries": 6}),
-        ("lr4 r6 g5", {**W100, "loop_repeats": 4, "loop_reentries": 6, "generations_per_phase": 5}),
-        ("lr4 r8 g5", {**W100, "loop_repeats": 4, "loop_reentries": 8, "generations_per_phase": 5}),
-        ("lr4 g5 B", {**W100, "loop_repeats": 4, "generations_per_phase": 5, "blame_phase_only": True}),
-        ("lr4 g5 mem", {**W100, "loop_repeats": 4, "generations_per_phase": 5, "escape_memory": True}),
-        ("lr4 motion-key r6", {**W100, "loop_repeats": 4, "loop_reentries": 6, "loop_key": "motion"}),
-        ("lr4 p20", {**W100, "loop_repeats": 4, "loop_patience": 20}),
-    ]),
     "round3": ("round 3: the odometry check and the round-3 default", "1-10", 100_000, [
         ("default before round 3 (W = 100)", W100),
         ("lr4 r6", {**W100, "loop_repeats": 4, "loop_reentries": 6}),
@@ -77,34 +48,20 @@ TABLES = {
         ("lr4 r3 rad80", {**ROUND3, "loop_reentries": 3}),
         ("lr4 r4 rad120", {**ROUND3, "loop_radius_mm": 120.0}),
         ("lr4 r4 rad80 (the round-3 default)", ROUND3),
-        ("lr4 r6 + loop_relax 10", {**W100, "loop_repeats": 4, "loop_reentries": 6, "loop_relax": 10}),
-        ("lr4 r6 + escape_spread leg", {**W100, "loop_repeats": 4, "loop_reentries": 6, "escape_spread": "leg"}),
-        ("lr4 r6 + escape_rewrite 20", {**W100, "loop_repeats": 4, "loop_reentries": 6, "escape_rewrite": 20}),
-        ("lr4 r4 rad80 + escape_credit", {**ROUND3, "escape_credit": True}),
-        ("lr4 r4 rad80 + mark_loops crash", {**ROUND3, "mark_loops": "crash"}),
-    ]),
-    "round4": ("round 4: a selection penalty for loop-blamed pairs", "1-15", 30_000, [
-        ("round-3 default", ROUND3),
-        ("--loop-penalty 0.4", {**ROUND3, "loop_penalty": 0.4}),
-        ("--generations-per-phase 5", {**ROUND3, "generations_per_phase": 5}),
-        ("--model-update most_frequent", {**ROUND3, "model_update": "most_frequent"}),
     ]),
     "round5": ("round 5: the forward distance and the one-round cycle detector", "1-20", 40_000, [
         ("SPEC fitness (first reading), round-3 defaults", ROUND3),
         ("first reading + --loop-cycles 1", {**ROUND3, "loop_cycles": 1}),
-        ("first reading + --download closest", {**ROUND3, "download": "closest"}),
         ("--distance forward", {**ROUND3, "distance_rule": "forward"}),
-        ("--distance forward --download closest", {**ROUND3, "distance_rule": "forward", "download": "closest"}),
-        ("--distance forward --loop-cycles 1 (the default now)", {**ROUND3, "distance_rule": "forward", "loop_cycles": 1}),
+        ("--distance forward --loop-cycles 1 (the default now)", ISSUE12),
     ]),
     "heldout": ("held-out seeds of round 5 (measured after the choice)", "21-40", 40_000, [
         ("SPEC fitness (first reading), round-3 defaults", ROUND3),
-        ("--distance forward --loop-cycles 1 (the default now)", {**ROUND3, "distance_rule": "forward", "loop_cycles": 1}),
+        ("--distance forward --loop-cycles 1 (the default now)", ISSUE12),
     ]),
     "one_obstacle": ("round 5 in the one-obstacle arena", "1-5", 40_000, [
         ("SPEC fitness (first reading), round-3 defaults", {**ROUND3, "arena": "one_obstacle"}),
-        ("--distance forward --loop-cycles 1", {**ROUND3, "distance_rule": "forward", "loop_cycles": 1,
-                                                 "arena": "one_obstacle"}),
+        ("--distance forward --loop-cycles 1", {**ISSUE12, "arena": "one_obstacle"}),
     ]),
 }
 
@@ -118,28 +75,13 @@ def seed_range(text: str) -> list[int]:
     return seeds
 
 
-def known_fields() -> set[str]:
-    from cosim.online.run import OnlineConfig
-
-    return {f.name for f in dataclasses.fields(OnlineConfig)}
-
-
-def rounds_1_7(options: dict) -> dict:
-    """Every row predates round 8: its cycle stops are blamed like rounds 1-7 (``loop_blame``
-    "leg"; a commit without that field has only that rule)."""
-    if "fail_rates" in known_fields() and "fail_rates" not in options:  # round 15's default
-        options = {**options, "fail_rates": False}
-    if "loop_blame" in known_fields() and "loop_blame" not in options:
-        return {**options, "loop_blame": "leg"}
-    return options
-
-
 def lifetime(task: tuple[str, dict, int, int]) -> dict:
     """One run of a row: the figures and how its legs were stopped."""
-    from cosim.online.run import OnlineConfig, make_run
+    from cosim.online.config import OnlineConfig
+    from cosim.online.run import make_run
 
     label, options, seed, budget = task
-    run = make_run(OnlineConfig(seed=seed, max_interactions=budget, **rounds_1_7(options))).run()
+    run = make_run(OnlineConfig(seed=seed, max_interactions=budget, **{**BEFORE_ROUND8, **options})).run()
     s = run.summary()
     detectors = Counter(p.get("detector", p["reason"]) for p in s["phases"])
     return {"row": label, "seed": seed, "budget": budget, "options": options,
@@ -156,16 +98,12 @@ def cell(r: dict, n_targets: int = 64) -> str:
         f"**{r['targets']} @ {r['budget']:,}**"
 
 
-def table(name: str, results: list[dict], seeds: list[int], skipped: list[str], command: str) -> str:
+def table(name: str, results: list[dict], seeds: list[int], command: str) -> str:
     title, *_ = TABLES[name]
     lines = [f"{title}. Command: `{command}`", "",
              "| configuration | " + " | ".join(f"seed {s}" for s in seeds) + " | median | worst | stops (all seeds) |",
              "|---|" + "---|" * (len(seeds) + 3)]
     for label, _options in TABLES[name][3]:
-        if label in skipped:
-            lines.append(f"| {label} | " + " | ".join("" for _ in seeds) +
-                         f" | (options dropped: run at commit {DROPPED_AT}) | | |")
-            continue
         runs = {r["seed"]: r for r in results if r["row"] == label}
         cells = [cell(runs[s]) if s in runs else "" for s in seeds]
         done = [runs[s] for s in seeds if s in runs]
@@ -184,8 +122,6 @@ def main(argv=None) -> int:
     p.add_argument("--seeds", help="seeds, e.g. 1-5 or 1,3 (default: the table's)")
     p.add_argument("--budget", type=int, help="max_interactions of a run (default: the table's)")
     p.add_argument("--rows", help="only the rows whose label contains this text")
-    p.add_argument("--dropped", action="store_true", help="only the rows with dropped options "
-                   f"(run this at commit {DROPPED_AT})")
     p.add_argument("--jobs", type=int, default=1, help="worker processes (default 1)")
     p.add_argument("--out", type=Path, help="the JSON lines (default build/experiments/<table>.jsonl)")
     p.add_argument("--list", action="store_true", help="list the tables and their rows")
@@ -199,12 +135,7 @@ def main(argv=None) -> int:
     title, default_seeds, default_budget, rows = TABLES[args.table]
     seeds = seed_range(args.seeds or default_seeds)
     budget = args.budget or default_budget
-    fields = known_fields()
     chosen = [(label, options) for label, options in rows if not args.rows or args.rows in label]
-    skipped = [label for label, options in chosen if not set(options) <= fields]
-    if args.dropped:
-        chosen = [row for row in chosen if set(row[1]) & DROPPED]
-    chosen = [row for row in chosen if row[0] not in skipped]
     out = args.out or Path("build/experiments") / f"{args.table}.jsonl"
     out.parent.mkdir(parents=True, exist_ok=True)
     done = [json.loads(line) for line in out.read_text().splitlines()] if out.exists() else []
@@ -223,7 +154,7 @@ def main(argv=None) -> int:
         pool.shutdown()
     results = [r for r in done if r["budget"] == budget]
     command = " ".join(["python experiments/online_table.py", *(sys.argv[1:] if argv is None else argv)])
-    text = table(args.table, results, seeds, skipped, command)
+    text = table(args.table, results, seeds, command)
     (out.with_suffix(".md")).write_text(text)
     print(text)
     return 0

@@ -16,11 +16,12 @@ Every point is ``peers.deep.HYPER`` (the fixed settings) with the grid's values 
 from __future__ import annotations
 
 import argparse
-import importlib.util
 import itertools
 import json
 import time
 from pathlib import Path
+
+import numpy as np
 
 from cosim.compare.run import run_task
 from cosim.compare.sweep import Cache, executor, run_sweep
@@ -39,12 +40,39 @@ GRID = {
 }
 
 
-def _tabular_script():
-    """experiments/tune_tabular.py as a module (its ``choose`` and ``progress_printer``)."""
-    spec = importlib.util.spec_from_file_location("tune_tabular", Path(__file__).with_name("tune_tabular.py"))
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+def choose(tasks: list[dict], results: list[dict], field: str) -> tuple[list[dict], dict]:
+    """Group the lifetimes by (row, grid point: ``task["config"][field]``); per row, the point of
+    the lowest median interactions to 64 targets (a capped lifetime counts as its cap; ties: the
+    lower mean). Returns every point's figures and {row: the chosen point's figures}. The rule of
+    experiments/tune_tabular.py (each script stands alone)."""
+    points: dict = {}
+    for task, res in zip(tasks, results):
+        key = (task["method"], json.dumps(task["config"][field], sort_keys=True))
+        points.setdefault(key, []).append(res)
+    table, chosen = [], {}
+    for (row, point), runs in points.items():
+        inter = [r["interactions"] for r in runs]
+        entry = {"row": row, field: json.loads(point), "seeds": [r["seed"] for r in runs],
+                 "interactions": inter, "median": float(np.median(inter)), "mean": float(np.mean(inter)),
+                 "reached_64": sum(r["targets_reached"] >= 64 for r in runs),
+                 "crashes": [r.get("crashes") for r in runs],
+                 "cpu_s": round(sum(r["cpu_s"] for r in runs), 1)}
+        table.append(entry)
+        best = chosen.get(row)
+        if best is None or (entry["median"], entry["mean"]) < (best["median"], best["mean"]):
+            chosen[row] = entry
+    return table, chosen
+
+
+def progress_printer(n_tasks: int):
+    """``on_result`` of ``run_sweep``: a line a lifetime, with the wall time."""
+    t0, done = time.perf_counter(), [0]
+
+    def progress(task, result, cached):
+        done[0] += 1
+        print(f"{done[0]}/{n_tasks} lifetimes ({time.perf_counter() - t0:.0f} s)", flush=True)
+
+    return progress
 
 
 def grid(method: str) -> list[dict]:
@@ -61,7 +89,6 @@ def main(argv=None) -> int:
     p.add_argument("--methods", default=",".join(GRID))
     p.add_argument("--shaping", default=",".join(SHAPINGS))
     args = p.parse_args(argv)
-    tune = _tabular_script()
     tasks = []
     for method in args.methods.split(","):
         for shaping in args.shaping.split(","):
@@ -72,8 +99,8 @@ def main(argv=None) -> int:
     t0 = time.perf_counter()
     with executor(args.jobs, args.cluster) as pool:
         results = run_sweep(run_task, tasks, pool, Cache(args.out / "cache"),
-                            on_result=tune.progress_printer(len(tasks), every=1))
-    table, chosen = tune.choose(tasks, results, "hyper")
+                            on_result=progress_printer(len(tasks)))
+    table, chosen = choose(tasks, results, "hyper")
     args.out.mkdir(parents=True, exist_ok=True)
     report = {"tuning_seeds": list(TUNING_SEEDS), "grid": GRID, "fixed": HYPER, "chosen": chosen, "points": table,
               "wall_s": round(time.perf_counter() - t0, 1)}

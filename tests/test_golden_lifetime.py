@@ -1,0 +1,41 @@
+"""The golden lifetime: a short on-line lifetime of today's default, pinned figure by figure.
+
+The research scripts of rounds 6-18 (at the tag ``research/round-18``) used to pin their defaults
+against ``make_run``; this one test stands in for them. It runs the default configuration
+(``OnlineConfig()`` but for 16 targets) on the reference boards, seed 1 (2-3 CPU s), and
+compares its summary figures and a sha256 of every motion it executed with the values below.
+
+The values were computed with the code of the tag ``research/round-18`` (commit 289673f, before
+the redesign) and with main after "the house" (issue 35), which gave the same lifetime.
+A change of any of them means the lifetime changed: the method, its defaults, a random stream or
+the world. Re-pin them only for an intended change of the method, and say so in the commit
+message (what changed and why the lifetime had to).
+"""
+
+from __future__ import annotations
+
+import hashlib
+
+from cosim.online.config import OnlineConfig
+from cosim.online.run import make_run
+
+GOLDEN_CONFIG = OnlineConfig(seed=1, n_targets=16)
+GOLDEN = {
+    "interactions": 723,
+    "targets_reached": 16,
+    "learning_phases": 45,
+    "phase_reasons": {"crash": 14, "loop": 31},
+    "generations": 450,
+    "world_states": 80,
+    "transitions": 182,
+}
+# sha256 of bytes(run.motions), the motions executed in order (the checkpoint's replay log).
+GOLDEN_MOTIONS_SHA256 = "48846b2b3f6a0cd9638b6f0b7901e154f1aa7d6c2c5e55ab3010745a95edbcb5"
+
+
+def test_the_default_lifetime_is_the_golden_one():
+    run = make_run(GOLDEN_CONFIG, "reference", None).run()
+    summary = run.summary()
+    assert {k: summary[k] for k in GOLDEN} == GOLDEN
+    assert len(run.motions) == summary["interactions"]
+    assert hashlib.sha256(bytes(run.motions)).hexdigest() == GOLDEN_MOTIONS_SHA256
