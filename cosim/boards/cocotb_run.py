@@ -115,19 +115,21 @@ def run_cocotb(
     waves: bool | None = None,
     simulator: str | None = None,
     timing: bool = False,
+    build_args: Sequence[str] = (),
 ) -> tuple[int, Path]:
     """Build ``sources`` in ``simulator`` (default: ``EHW_SIM`` or Icarus) and run the cocotb
     tests of ``test_module`` (found in ``test_dir``) on ``toplevel``. Returns (number of tests,
     results file); raises :class:`CocotbFailure` when any failed or none ran. ``waves`` (default:
     the WAVES environment variable) dumps an FST (Icarus) or VCD (Verilator) next to the build.
     ``timing``: Verilator builds with ``--timing`` (the sources hold delays, e.g. a clock generated
-    in the Verilog); Icarus always simulates delays."""
+    in the Verilog); Icarus always simulates delays. ``build_args``: more compiler options (e.g. the
+    defines of vendor cell models, ``hdl.gatesim.simulator_flags``)."""
     simulator = simulator or simulator_default()
     if simulator not in SIMULATORS:
         raise ValueError(f"simulator {simulator!r}: expected one of {', '.join(SIMULATORS)}")
     build_dir = SIM_BUILD / (build_name or toplevel)
     sources = [str(s) for s in sources]
-    build_args = []
+    extra_args, build_args = list(build_args), []
     if simulator == "icarus":
         require_iverilog()
         runner = get_runner("icarus")
@@ -144,7 +146,7 @@ def run_cocotb(
         sources=sources,
         hdl_toplevel=toplevel,
         build_dir=build_dir,
-        build_args=build_args,
+        build_args=build_args + extra_args,
         timescale=("1ns", "1ps"),  # Amaranth's Verilog has none; Icarus needs it for Timer(ns)
         waves=waves,
         always=True,
