@@ -35,13 +35,15 @@ from amaranth.hdl import ClockSignal, Instance, Module
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
+from base.errors import UserError
+
 NETLIST_ROOT = Path("build/gatesim")
 # The two iCEBreakers of the paper's two-board arrangement, simulated side by side.
 PAIR = ("icebreaker-controller", "icebreaker-evaluator")
 _META = "netlist.json"
 
 
-class GateSimError(Exception):
+class GateSimError(UserError):
     """A netlist that cannot be made (one ``error:`` line)."""
 
 

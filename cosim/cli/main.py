@@ -54,6 +54,7 @@ from base.options import (
     write_config,
 )
 from base.runs import RunLock, open_run
+from cosim.cli.gatesim import cmd_gatesim, gatesim_parser
 from cosim.cli.commands import SIM_DEST_OF, SIM_RUN_OPTIONS, cmd_offline, cmd_sim, offline_parser, sim_parser
 from cosim.cli.options import RESULTS, resolve_hdl_settings
 from cosim.compare.options import COMPARE_ROOT
@@ -194,6 +195,7 @@ COMMANDS = {
     "compare": (_compare_parser, cmd_compare, "every method (on-line, off-line, baseline, RL peers) over N seeds -> results/compare/<date>-<time>-seeds<A>-<B>/compare.md/.json/.png"),
     "verilog": (_verilog_parser, cmd_verilog, "the Verilog of the EHW blocks -> build/verilog/"),
     "arena": (_arena_parser, cmd_arena, "render arenas -> results/arena/<date>-<time>/arena_<name>.png"),
+    "gatesim": (gatesim_parser, cmd_gatesim, "the bitstream targets' synthesised netlists driven by the host code over their UART pins -> results/gatesim.json"),
     "baseline": (_baseline_parser, cmd_baseline, "the hand-written reactive baseline through the 64 legs -> results/baseline/<date>-<time>-seeds<A>-<B>/"),
 }
 _SUBPARSERS: dict[str, argparse.ArgumentParser] = {}

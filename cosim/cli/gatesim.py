@@ -1,0 +1,68 @@
+"""``ehw gatesim [TARGET ...]``: the bitstream targets' synthesised netlists driven by the host code
+(``cosim.launch.gatesim``) -> ``results/gatesim.json``.
+
+Exit status 0 when every target's netlist gave the reference's motions (and lifetime), 1 when
+one did not, 2 for a user error (an unknown target, a missing tool).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+
+def gatesim_parser(p) -> None:
+    from cosim.launch.gatesim import CHECKS, DEFAULT_TARGETS, RESULTS
+
+    p.add_argument("target_names", nargs="*", metavar="TARGET",
+                   help=f"bitstream targets ({', '.join(CHECKS)}; default: {', '.join(DEFAULT_TARGETS)})")
+    p.add_argument("--simulator", choices=("verilator", "icarus"), default="verilator",
+                   help="Verilator (compiles the netlist: minutes, then ~50x Icarus) or Icarus "
+                        "(default: %(default)s)")
+    p.add_argument("--seed", type=int, default=1, help="the lifetime's seed; the motions check's genomes (default: %(default)s)")
+    motions = p.add_argument_group("the motions check (icebreaker-controller, ulx3s-learner)")
+    motions.add_argument("--genomes", type=int, default=3, help="random genomes loaded (default: %(default)s)")
+    motions.add_argument("--states", type=int, default=24, help="states asked per genome (default: %(default)s)")
+    life = p.add_argument_group("the lifetime check (icebreaker-evaluator: both iCEBreakers; ulx3s-system)")
+    life.add_argument("--targets", type=int, default=4, help="targets of the lifetime (default: %(default)s)")
+    life.add_argument("--population", type=int, default=4, help="GA population (default: %(default)s)")
+    life.add_argument("--tournament", type=int, default=2, help="GA tournament (default: %(default)s)")
+    life.add_argument("--generations-per-phase", type=int, default=1, help="(default: %(default)s)")
+    life.add_argument("--max-interactions", type=int, default=40,
+                      help="stop the lifetime after this many interactions: every byte costs "
+                           "~1,000-2,000 gate-level clock cycles (default: %(default)s)")
+    p.add_argument("--results", type=Path, default=RESULTS, help="results file (default: %(default)s)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar for the lifetime")
+
+
+def cmd_gatesim(args, extras: dict, sub=None) -> int:
+    from base.errors import UserError
+    from cosim.launch.gatesim import CHECKS, DEFAULT_TARGETS, run_gatesim, write_results
+    from cosim.online.config import OnlineConfig
+
+    names = args.target_names or list(DEFAULT_TARGETS)
+    unknown = [n for n in names if n not in CHECKS]
+    if unknown:
+        raise UserError(f"unknown target(s) {', '.join(map(repr, unknown))}; known: {', '.join(CHECKS)}")
+    for flag in ("genomes", "states", "targets", "population", "tournament", "generations_per_phase",
+                 "max_interactions"):
+        if getattr(args, flag) < 1:
+            raise UserError(f"--{flag.replace('_', '-')} must be at least 1, got {getattr(args, flag)!r}")
+    try:
+        config = OnlineConfig(seed=args.seed, n_targets=args.targets, population=args.population,
+                              tournament=args.tournament, generations_per_phase=args.generations_per_phase,
+                              max_interactions=args.max_interactions)
+    except (TypeError, ValueError) as exc:
+        raise UserError(f"the lifetime's options: {exc}") from None
+    failed = []
+    for name in names:
+        entry = run_gatesim(name, config=config, genomes=args.genomes, states=args.states, seed=args.seed,
+                            simulator=args.simulator, progress=not args.no_progress)
+        write_results(args.results, name, entry)
+        verdict = "EQUAL to the reference" if entry["equal_to_reference"] else "DIFFERS from the reference"
+        print(f"{name}: {entry['check']} on the {entry['netlist']['kind']} netlist in {entry['simulator']}: "
+              f"{entry['interactions']} interactions, {verdict} ({entry['wall_s']:.0f} s)"
+              + (f"\n{name}: {entry['error']}" if entry.get("error") else ""), flush=True)
+        if not entry["equal_to_reference"]:
+            failed.append(name)
+    print(f"wrote {args.results}")
+    return 1 if failed else 0
