@@ -32,7 +32,7 @@ PORT   ?=
 PORT2  ?=
 BAUD   ?=
 
-.PHONY: all test test-fast sim offline compare rl verilog bitstream bench arena baseline formal hdl-tools venv clean distclean help
+.PHONY: all test test-fast sim offline compare rl verilog bitstream gatesim bench arena baseline formal hdl-tools venv clean distclean help
 
 all: test
 
@@ -48,6 +48,7 @@ help:
 	@echo "make verilog   build/verilog/*.v"
 	@echo "make formal    the formal proofs (Yosys SAT) -> results/formal.json (docs/formal.md)"
 	@echo "make bitstream FPGA bitstreams -> build/fpga/<target>/, results/fpga.json (FPGA_TARGETS=...), gate-level check"
+	@echo "make gatesim   the bitstream targets' synthesised netlists driven by the host code over their UART pins -> results/gatesim.json (GATESIM_TARGETS=...)"
 	@echo "make bench     speed figures -> results/bench/latest/bench.json, merged into results/bench.json"
 	@echo "make arena     render the arenas -> results/arena/latest/arena_<name>.png"
 	@echo "make baseline  run the reactive baseline through the 64 legs -> results/baseline/latest/"
@@ -130,6 +131,14 @@ bitstream: $(FPGA_STAMP) hdl-tools
 	@status=0; $(PY) -m hdl.fpga $(FPGA_TARGETS) || status=$$?; \
 	EHW_GATE_LEVEL=1 $(PY) -m pytest -n 0 -q -p no:cacheprovider tests/test_gate_level.py || status=1; \
 	exit $$status
+
+# Each bitstream target's board top as built, synthesised by Yosys and simulated with the vendor
+# cell models in Verilator, driven through its UART pins by the host code of --backend serial
+# (cosim/launch/gatesim.py; docs/fpga.md). GATESIM_TARGETS: default the first three targets
+# (ulx3s-learner only when named). Minutes a target; tests/test_gatesim.py runs the smallest.
+GATESIM_TARGETS ?=
+gatesim: $(STAMP) hdl-tools
+	$(EHW) gatesim $(GATESIM_TARGETS) $(ARGS)
 
 bench: $(STAMP) hdl-tools
 	$(EHW) bench $(ARGS)

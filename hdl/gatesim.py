@@ -146,12 +146,14 @@ def _ports(verilog: str, module: str) -> list[str]:
 
 
 def _pin_directions(verilog: str, directions: dict[str, str]) -> str:
-    """The netlist with its package pins (``inout`` after synthesis: each ends in an I/O buffer
-    cell) declared in the direction the board uses them, which Verilator requires."""
+    """The netlist with its package pins declared in the direction the board uses them, which
+    Verilator requires (iCE40: ``inout`` after synthesis, each pin ends in an SB_IO cell; ECP5's
+    TRELLIS_IO pins come out with their direction)."""
     for pin, direction in directions.items():
-        verilog, n = re.subn(rf"^(\s*)inout(\s+{re.escape(pin)};)", rf"\1{direction}\2", verilog, count=1, flags=re.M)
+        verilog, n = re.subn(rf"^(\s*)(?:inout|{direction})(\s+{re.escape(pin)};)", rf"\1{direction}\2",
+                             verilog, count=1, flags=re.M)
         if n != 1:
-            raise GateSimError(f"the netlist declares no inout pin {pin!r}")
+            raise GateSimError(f"the netlist declares no pin {pin!r} (inout or {direction})")
     return verilog
 
 
