@@ -104,7 +104,10 @@ def run_gatesim(target: str, *, config=None, genomes: int = 3, states: int = 24,
         (out / stale).unlink(missing_ok=True)
     harness = first.directory / f"{TOPLEVEL}_{target}_{kind}.v"
     harness.write_text(harness_verilog(netlists, TOPLEVEL))
-    sources = [harness, *[Path(n.path) for n in netlists.values()], *cell_models(first.directory, first.family, simulator)]
+    # a folder of their own: Yosys would take a copied .vh in its working folder for its own
+    models = cell_models(first.directory / "cells", first.family, simulator)
+    sources = [harness, *[Path(n.path) for n in netlists.values()], *models]
+    includes = [f"-I{d}" for d in dict.fromkeys([first.directory, *(Path(m).parent for m in models)])]
     options = {"out": str(out), "target": target, "roles": list(netlists), "progress": progress,
                "clk_freq_hz": first.clk_freq_hz, "seed": seed, "genomes": genomes, "states": states,
                "host_timeout_s": host_timeout_s(first.baud, P_MAX)}
@@ -123,9 +126,12 @@ def run_gatesim(target: str, *, config=None, genomes: int = 3, states: int = 24,
     try:
         run_cocotb(sources=sources, toplevel=TOPLEVEL, test_module="cosim.launch.gatesim_test",
                    test_dir=REPO_ROOT, build_name=f"gatesim_{target}_{kind}", testcase=f"gate_{check}",
-                   extra_env=env, simulator=simulator, build_args=list(simulator_flags(first.family, simulator)))
+                   extra_env=env, simulator=simulator,
+                   build_args=[*simulator_flags(first.family, simulator), *includes])
     except CocotbFailure as exc:
         error = str(exc)
+    except RuntimeError as exc:  # the simulator could not build the netlist (its log is above)
+        error = f"{simulator} could not build the netlist: {exc}"
     sim_s = time.perf_counter() - t1
     entry = {
         "netlist": {"kind": first.kind,
