@@ -91,12 +91,50 @@ def cell_models(workdir: Path, family: str, simulator: str = "icarus") -> list[P
         raise GateSimError(f"no cell models for FPGA family {family!r}; known: ice40, ecp5")
     lattice = share / "lattice"
     workdir.mkdir(parents=True, exist_ok=True)
+    (workdir / "ecp5_extra_sim.v").write_text(ECP5_EXTRA_MODELS)
     for name in ("common_sim.vh", "ccu2c_sim.vh"):
         text = (lattice / name).read_text()
         (workdir / name).write_text(text.replace('$error("unsupported COMB mode', '// $error("unsupported COMB mode'))
     top = workdir / "cells_sim_ecp5.v"
     top.write_text((lattice / "cells_sim_ecp5.v").read_text())
-    return [top, lattice / "cells_ff.vh", lattice / "cells_io.vh"]
+    return [top, lattice / "cells_ff.vh", lattice / "cells_io.vh", workdir / "ecp5_extra_sim.v"]
+
+
+# Two ECP5 cells the wheel has only as black boxes (lattice/cells_bb_ecp5.v), modelled here:
+# - SGSR, the synchronous global set/reset that Amaranth's ECP5 platform drives from its reset
+#   synchroniser: every flip-flop model starts at its initial value (the power-up reset, PUR)
+#   and the synchroniser releases GSR two cycles after configuration, so the model does nothing;
+# - MULT18X18D in the only mode Yosys's DSP mapping gives it here: every register bypassed
+#   (REG_*_CLK = "NONE"), P = A x B, signed as SIGNEDA / SIGNEDB say. Any other mode stops the
+#   simulation at time 0.
+ECP5_EXTRA_MODELS = r"""
+module SGSR(input GSR, input CLK);
+endmodule
+
+module MULT18X18D #(
+    parameter REG_INPUTA_CLK = "NONE", parameter REG_INPUTB_CLK = "NONE",
+    parameter REG_INPUTC_CLK = "NONE", parameter REG_PIPELINE_CLK = "NONE",
+    parameter REG_OUTPUT_CLK = "NONE"
+) (
+    input A0, A1, A2, A3, A4, A5, A6, A7, A8, A9, A10, A11, A12, A13, A14, A15, A16, A17,
+    input B0, B1, B2, B3, B4, B5, B6, B7, B8, B9, B10, B11, B12, B13, B14, B15, B16, B17,
+    input C0, C1, C2, C3, C4, C5, C6, C7, C8, C9, C10, C11, C12, C13, C14, C15, C16, C17,
+    input SIGNEDA, SIGNEDB, SOURCEA, SOURCEB,
+    output P0, P1, P2, P3, P4, P5, P6, P7, P8, P9, P10, P11, P12, P13, P14, P15, P16, P17,
+    output P18, P19, P20, P21, P22, P23, P24, P25, P26, P27, P28, P29, P30, P31, P32, P33, P34, P35
+);
+    initial if (REG_INPUTA_CLK != "NONE" || REG_INPUTB_CLK != "NONE" || REG_INPUTC_CLK != "NONE"
+                || REG_PIPELINE_CLK != "NONE" || REG_OUTPUT_CLK != "NONE")
+        $fatal(1, "MULT18X18D: only the unregistered mode is modelled");
+    wire [17:0] a = {A17, A16, A15, A14, A13, A12, A11, A10, A9, A8, A7, A6, A5, A4, A3, A2, A1, A0};
+    wire [17:0] b = {B17, B16, B15, B14, B13, B12, B11, B10, B9, B8, B7, B6, B5, B4, B3, B2, B1, B0};
+    wire [35:0] a_ext = {{18{SIGNEDA & a[17]}}, a};
+    wire [35:0] b_ext = {{18{SIGNEDB & b[17]}}, b};
+    wire [35:0] p = a_ext * b_ext;
+    assign {P35, P34, P33, P32, P31, P30, P29, P28, P27, P26, P25, P24, P23, P22, P21, P20, P19, P18,
+            P17, P16, P15, P14, P13, P12, P11, P10, P9, P8, P7, P6, P5, P4, P3, P2, P1, P0} = p;
+endmodule
+"""
 
 
 def simulator_flags(family: str, simulator: str = "icarus") -> tuple[str, ...]:
