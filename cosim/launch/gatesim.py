@@ -83,10 +83,12 @@ def reference_lifetime(config) -> tuple[dict, list[int]]:
 
 def run_gatesim(target: str, *, config=None, genomes: int = 3, states: int = 24, seed: int = 1,
                 out: Path | str | None = None, progress: bool = True, simulator: str = "verilator",
-                kind: str = "synth", print_=print) -> dict:
+                kind: str = "synth", quick_build: bool = False, print_=print) -> dict:
     """Synthesise ``target``'s board top(s), simulate the check of ``CHECKS[target]`` and return
     its ``results/gatesim.json`` entry (``config``: the lifetime's ``OnlineConfig``; ``kind``:
-    ``synth``, Yosys's netlist, or ``pnr``, nextpnr's routed one, iCE40 targets only)."""
+    ``synth``, Yosys's netlist, or ``pnr``, nextpnr's routed one, iCE40 targets only;
+    ``quick_build``: Verilator's C++ compiled without optimisation, minutes sooner for a short
+    check, the simulation itself slower)."""
     from cosim.boards.cocotb_run import REPO_ROOT, CocotbFailure, run_cocotb
     from cosim.link.simulated import host_timeout_s
     from hdl.gatesim import cell_models, harness_verilog, place_and_route, simulator_flags, synthesize
@@ -127,7 +129,8 @@ def run_gatesim(target: str, *, config=None, genomes: int = 3, states: int = 24,
         run_cocotb(sources=sources, toplevel=TOPLEVEL, test_module="cosim.launch.gatesim_test",
                    test_dir=REPO_ROOT, build_name=f"gatesim_{target}_{kind}", testcase=f"gate_{check}",
                    extra_env=env, simulator=simulator,
-                   build_args=[*simulator_flags(first.family, simulator), *includes])
+                   build_args=[*simulator_flags(first.family, simulator), *includes,
+                               *(("-CFLAGS", "-O0") if quick_build and simulator == "verilator" else ())])
     except CocotbFailure as exc:
         error = str(exc)
     except RuntimeError as exc:  # the simulator could not build the netlist (its log is above)
