@@ -170,7 +170,7 @@ class GateNetlist:
 
     target: str
     family: str
-    kind: str  # "synth": Yosys's netlist before place and route; "pnr": nextpnr's routed one
+    kind: str  # "synth": Yosys's netlist before place and route
     path: str  # the netlist's Verilog
     module: str  # its top module
     clk: str  # the pins: board clock, UART receive (host -> board), UART transmit
@@ -262,54 +262,6 @@ def synthesize(target_name: str, root: Path | str = NETLIST_ROOT, *, progress=pr
     return result
 
 
-def place_and_route(target_name: str, root: Path | str = NETLIST_ROOT, *, seed: int = 1,
-                    progress=print) -> GateNetlist:
-    """The netlist of ``target_name`` after nextpnr placed and routed it (iCE40 only; cached).
-
-    nextpnr-ice40 writes the routed design back (``--write``) as ICESTORM_LC / ICESTORM_RAM /
-    SB_IO / SB_GB cells, which iCE40's cells_sim.v models; Yosys turns that JSON into Verilog.
-    The placement is the bitstream's (same arguments and ``seed`` as ``hdl.fpga.build``); the
-    simulation is functional (no SDF delays). nextpnr-ecp5's routed cells (TRELLIS_SLICE, ...)
-    have models too, but its place and route takes 15-50 minutes a target here: not done."""
-    import time
-
-    from hdl.fpga import tool_env
-
-    synth = synthesize(target_name, root, progress=progress)
-    if synth.family != "ice40":
-        raise GateSimError(f"{target_name}: a post-place-and-route netlist is made for iCE40 targets only")
-    out = synth.directory
-    module = f"{synth.module}_pnr"
-    netlist = out / f"{module}.v"
-    meta = out / f"pnr_{_META}"
-    if meta.exists() and netlist.exists():
-        cached = json.loads(meta.read_text())
-        if cached.get("key") == synth.key:
-            return GateNetlist(**cached)
-    env = tool_env()
-    script = (out / "build_top.sh").read_text()
-    args = re.search(r'"\$NEXTPNR_ICE40" (.*)', script).group(1).split()
-    args = [a for a in args if a not in ("--asc", "top.asc", "--quiet")]
-    progress(f"{target_name}: placing and routing with nextpnr-ice40 (minutes)")
-    t0 = time.perf_counter()
-    run = subprocess.run([env["NEXTPNR_ICE40"], "--quiet", *args, "--write", "top.pnr.json",
-                          "--timing-allow-fail", "--seed", str(seed)],
-                         cwd=out, capture_output=True, text=True, env=env)
-    if run.returncode != 0:
-        raise GateSimError(f"{target_name}: nextpnr failed (log: {out / 'top.tim'}): {run.stderr.strip()[-500:]}")
-    run = subprocess.run([yosys_command(), "-q", "-p", f"read_json top.pnr.json; rename top {module}; "
-                          f"write_verilog -noattr {netlist.name}"], cwd=out, capture_output=True, text=True)
-    if run.returncode != 0:
-        raise GateSimError(f"{target_name}: Yosys could not read the routed design: {run.stderr.strip()[-500:]}")
-    pnr_s = time.perf_counter() - t0
-    text = netlist.read_text()
-    netlist.write_text(_pin_directions(text, {synth.clk: "input", synth.rx: "input", synth.tx: "output"}))
-    result = GateNetlist(**{**asdict(synth), "kind": "pnr", "path": str(netlist), "module": module,
-                            "synth_s": round(synth.synth_s + pnr_s, 1)})
-    meta.write_text(json.dumps(asdict(result), indent=1) + "\n")
-    return result
-
-
 class NetlistTop(wiring.Component):
     """A synthesised board top as a link top: ``rx``/``tx`` as the board's UART pins, the
     harness's ``sync`` clock on the board's clock pin (its reset is the netlist's own)."""
@@ -367,4 +319,4 @@ def harness_verilog(netlists: dict, name: str) -> str:
 
 
 __all__ = ["GateNetlist", "GateSimError", "NETLIST_ROOT", "NetlistTop", "PAIR", "PairHarness",
-           "cell_models", "harness_verilog", "module_name", "place_and_route", "simulator_flags", "synthesize"]
+           "cell_models", "harness_verilog", "module_name", "simulator_flags", "synthesize"]

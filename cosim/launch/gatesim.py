@@ -83,28 +83,26 @@ def reference_lifetime(config) -> tuple[dict, list[int]]:
 
 def run_gatesim(target: str, *, config=None, genomes: int = 3, states: int = 24, seed: int = 1,
                 out: Path | str | None = None, progress: bool = True, simulator: str = "verilator",
-                kind: str = "synth", quick_build: bool = False, print_=print) -> dict:
+                quick_build: bool = False, print_=print) -> dict:
     """Synthesise ``target``'s board top(s), simulate the check of ``CHECKS[target]`` and return
-    its ``results/gatesim.json`` entry (``config``: the lifetime's ``OnlineConfig``; ``kind``:
-    ``synth``, Yosys's netlist, or ``pnr``, nextpnr's routed one, iCE40 targets only;
+    its ``results/gatesim.json`` entry (``config``: the lifetime's ``OnlineConfig``;
     ``quick_build``: Verilator's C++ compiled without optimisation, minutes sooner for a short
     check, the simulation itself slower)."""
     from cosim.boards.cocotb_run import REPO_ROOT, CocotbFailure, run_cocotb
     from cosim.link.simulated import host_timeout_s
-    from hdl.gatesim import cell_models, harness_verilog, place_and_route, simulator_flags, synthesize
+    from hdl.gatesim import cell_models, harness_verilog, simulator_flags, synthesize
     from hdl.system_top import P_MAX
     from hdl.uart import uart_divisor
 
     check = CHECKS[target]
     t0 = time.perf_counter()
-    make = {"synth": synthesize, "pnr": place_and_route}[kind]
-    netlists = {role: make(name, progress=print_) for role, name in _roles(target).items()}
+    netlists = {role: synthesize(name, progress=print_) for role, name in _roles(target).items()}
     synth_s = time.perf_counter() - t0
     first = next(iter(netlists.values()))
-    out = prepare_out(OUT_ROOT / f"{target}_{kind}" if out is None else out)
+    out = prepare_out(OUT_ROOT / target if out is None else out)
     for stale in ("motions.json", "link.json"):
         (out / stale).unlink(missing_ok=True)
-    harness = first.directory / f"{TOPLEVEL}_{target}_{kind}.v"
+    harness = first.directory / f"{TOPLEVEL}_{target}.v"
     harness.write_text(harness_verilog(netlists, TOPLEVEL))
     # a folder of their own: Yosys would take a copied .vh in its working folder for its own
     models = cell_models(first.directory / "cells", first.family, simulator)
@@ -127,7 +125,7 @@ def run_gatesim(target: str, *, config=None, genomes: int = 3, states: int = 24,
     error = None
     try:
         run_cocotb(sources=sources, toplevel=TOPLEVEL, test_module="cosim.launch.gatesim_test",
-                   test_dir=REPO_ROOT, build_name=f"gatesim_{target}_{kind}", testcase=f"gate_{check}",
+                   test_dir=REPO_ROOT, build_name=f"gatesim_{target}", testcase=f"gate_{check}",
                    extra_env=env, simulator=simulator,
                    build_args=[*simulator_flags(first.family, simulator), *includes,
                                *(("-CFLAGS", "-O0") if quick_build and simulator == "verilator" else ())])
@@ -137,9 +135,7 @@ def run_gatesim(target: str, *, config=None, genomes: int = 3, states: int = 24,
         error = f"{simulator} could not build the netlist: {exc}"
     sim_s = time.perf_counter() - t1
     entry = {
-        "netlist": {"kind": first.kind,
-                    "tool": (f"Yosys synth_{first.family}, write_verilog -noattr" if kind == "synth" else
-                             "nextpnr-ice40 --write (routed), Yosys read_json, write_verilog -noattr; no SDF delays"),
+        "netlist": {"kind": first.kind, "tool": f"Yosys synth_{first.family}, write_verilog -noattr",
                     "modules": {role: n.module for role, n in netlists.items()},
                     "cell_models": [Path(p).name for p in sources[1 + len(netlists):]]},
         "simulator": _icarus_version() if simulator == "icarus" else _verilator_version(), "check": check,
