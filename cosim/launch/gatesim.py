@@ -26,7 +26,6 @@ clock, baud and divisor, the bytes over the line, and for a lifetime its configu
 from __future__ import annotations
 
 import json
-import shutil
 import subprocess
 import time
 from pathlib import Path
@@ -100,7 +99,7 @@ def run_gatesim(target: str, *, config=None, genomes: int = 3, states: int = 24,
     synth_s = time.perf_counter() - t0
     first = next(iter(netlists.values()))
     out = prepare_out(OUT_ROOT / target if out is None else out)
-    for stale in ("motions.json", "link.json"):
+    for stale in ("motions.json", "link.json", "error.json"):
         (out / stale).unlink(missing_ok=True)
     harness = first.directory / f"{TOPLEVEL}_{target}.v"
     harness.write_text(harness_verilog(netlists, TOPLEVEL))
@@ -153,8 +152,10 @@ def _outcome(check: str, out: Path, config, error: str | None) -> dict:
     """interactions, equal_to_reference (and why not) of a finished simulation."""
     motions_file = out / "motions.json"
     if error is not None or not motions_file.exists():
+        said = out / "error.json"  # what the host code raised inside the simulation
         return {"interactions": None, "equal_to_reference": False,
-                "error": error or "the simulation wrote no motions.json"}
+                "error": json.loads(said.read_text())["error"] if said.exists() else
+                error or "the simulation wrote no motions.json"}
     got = json.loads(motions_file.read_text())
     if check == "motions":
         # every motion was compared with the reference controller as it came (LinkMismatch)
@@ -184,10 +185,3 @@ def write_results(path: Path | str, target: str, entry: dict) -> dict:
     data.setdefault("targets", {})[target] = entry
     atomic_write_json(path, data)
     return data
-
-
-def clean_build(target: str) -> None:
-    """Forget ``target``'s cached netlist (the next run synthesises it again)."""
-    from hdl.gatesim import NETLIST_ROOT
-
-    shutil.rmtree(NETLIST_ROOT / target, ignore_errors=True)

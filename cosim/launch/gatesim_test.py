@@ -66,11 +66,21 @@ def _write(out: Path, name: str, value) -> None:
     (out / name).write_text(json.dumps(value, indent=1) + "\n")
 
 
+async def _reporting(out: Path, job) -> None:
+    """Run ``job`` in the bridge thread; its exception (a ``LinkMismatch``: what differed) also
+    goes to ``out/error.json`` for the launcher's results."""
+    from cocotb.task import bridge
+
+    try:
+        await bridge(job)()
+    except Exception as exc:
+        _write(out, "error.json", {"error": f"{type(exc).__name__}: {exc}"})
+        raise
+
+
 @cocotb.test()
 async def gate_motions(dut):
     """The controller board's netlist: genomes loaded over the link, motions == the reference."""
-    from cocotb.task import bridge
-
     _, options = read_launch_env()
     (line,) = await _start(dut, options)
     out = Path(options["out"])
@@ -100,14 +110,12 @@ async def gate_motions(dut):
                 "bytes_sent": client.stats.bytes_sent, "bytes_received": client.stats.bytes_received,
                 "requests": client.stats.requests, "resends": client.stats.resends}
 
-    _write(out, "motions.json", await bridge(check)())
+    await _reporting(out, lambda: _write(out, "motions.json", check()))
 
 
 @cocotb.test()
 async def gate_lifetime(dut):
     """An on-line lifetime on the boards' netlists; options from the environment."""
-    from cocotb.task import bridge
-
     config, options = read_launch_env()
     lines = await _start(dut, options)
     out = Path(options["out"])
@@ -129,4 +137,4 @@ async def gate_lifetime(dut):
         _write(out, "motions.json", {"interactions": run.interactions, "motions": list(run.motions)})
         write_link_summary(run, out)
 
-    await bridge(lifetime)()
+    await _reporting(out, lifetime)
