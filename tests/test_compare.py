@@ -16,7 +16,6 @@ from cosim.compare.run import (
     METHODS,
     build_report,
     fixed_controller_adaptation,
-    main,
     make_tasks,
     markdown,
     run_task,
@@ -26,6 +25,13 @@ from cosim.compare.sweep import Cache, executor, run_sweep
 from ga.genome import hex_from_rows
 from ga.operators import random_population
 
+
+
+def main(argv) -> int:
+    """``ehw compare ARGV`` (its exit status)."""
+    from cosim.cli.main import main as ehw
+
+    return ehw(["compare", *argv])
 
 @pytest.fixture(autouse=True)
 def _in_tmp(tmp_path, monkeypatch):
