@@ -145,7 +145,7 @@ def write_plots(run, out: Path) -> list[Path]:
     title = (f"On-line model-based lifetime (seed {run.config.seed}): {run.targets} targets, "
              f"{run.interactions:,} interactions")
     path = out / "fig9_trajectory.png"
-    plot_trajectory(run.world.arena, [(x, y, 0.0, event) for x, y, event in run.trajectory], path,
+    plot_trajectory(run.world.arena, [(x, y, h, event) for x, y, h, _state, event in run.trajectory], path,
                     title=title)
     paths.append(path)
 
@@ -186,6 +186,9 @@ def write_results(run, out: Path, plots: bool = True) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     summary = run.summary()
     atomic_write_json(out / "summary.json", summary)
+    from cosim.online.recording import recording_of, write_recording  # what `ehw replay` draws
+
+    write_recording(recording_of(run), out)
     if plots:
         summary["plots"] = [str(p) for p in write_plots(run, out)]
     return summary
