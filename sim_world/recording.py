@@ -1,12 +1,13 @@
-"""What a replay of a lifetime needs, in one compact file: ``lifetime.npz`` in the run folder.
+"""What a replay of a robot's path needs, in one compact file: ``lifetime.npz`` in the run folder.
 
-The lifetime loop (``cosim.online.run.OnlineRun.step``) already keeps, per interaction, the pose
+The on-line lifetime loop (``cosim.online.run.OnlineRun.step``) keeps, per interaction, the pose
 (x, y, heading), the state sensed there and the event (crash, target, relocation) in
 ``run.trajectory``, and the curves of the world model's growth; the learning phases (each ending
-in a download) are ``run.phases``. This module packs them into NumPy arrays (float32 poses,
-integer codes) with no pickled objects. A resumed run rebuilds ``run.trajectory`` by replaying the
-checkpoint's motions through the same world (``OnlineRun.load_state``), so a resumed run writes
-the same recording as an uninterrupted one.
+in a download) are ``run.phases``; ``cosim.online.report.recording_of`` packs them. The off-line
+method records the path of its best controller (``cosim.offline.report.plot_results``). This
+module defines the file: NumPy arrays (float32 poses, integer codes), no pickled objects. A
+resumed on-line run rebuilds ``run.trajectory`` by replaying the checkpoint's motions through the
+same world (``OnlineRun.load_state``), so it writes the same recording as an uninterrupted one.
 
 Arrays (N trajectory entries: the start, one per interaction, one more per relocation; P phases):
 
@@ -82,24 +83,6 @@ def trajectory_arrays(trajectory) -> dict:
     steps = (event != _EVENT_CODE["start"]) & (event != _EVENT_CODE["relocate"])
     return {"pose": pose, "state": state, "event": event,
             "interaction": np.cumsum(steps, dtype=np.int32)}
-
-
-def recording_of(run) -> dict:
-    """The arrays of an on-line lifetime (``cosim.online.run.OnlineRun``)."""
-    phases = run.phases
-    transitions = np.array(sorted(run.transitions), dtype=np.uint8).reshape(-1, 4)
-    return {
-        **trajectory_arrays(run.trajectory),
-        "motions": np.asarray(run.motions, dtype=np.uint8),
-        "curve_states": np.asarray(run.curve_states, dtype=np.int32),
-        "curve_transitions": np.asarray(run.curve_transitions, dtype=np.int32),
-        "phase_interaction": np.array([p["interactions"] for p in phases], dtype=np.int32),
-        "phase_reason": np.array([p["reason"] for p in phases], dtype="U8"),
-        "phase_changed": np.array([bool(p.get("changed", False)) for p in phases], dtype=bool),
-        "transitions": transitions,
-        "arena": np.array(str(run.config.arena)), "seed": np.array(int(run.config.seed)),
-        "method": np.array("online-model-based"),
-    }
 
 
 def write_recording(arrays: dict, out: Path) -> Path:
