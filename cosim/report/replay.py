@@ -115,18 +115,28 @@ class _Scene:
         self.robot = Circle((0, 0), ROBOT_RADIUS_MM, fc="khaki", ec="black", lw=1.0, zorder=7, **anim)
         ax.add_patch(self.robot)
         self.heading, = ax.plot([], [], color="black", lw=2.0, zorder=8, **anim)
-        self.caption = self.fig.text(0.03, 0.925, "", ha="left", va="top", fontsize=9.5,
-                                     family="monospace", **anim)
         self.artists = (self.trail_all, self.trail_leg, self.targets, self.crashes, self.rays,
-                        self.robot, self.heading, self.caption)
+                        self.robot, self.heading)
         self.canvas.draw()
         self.background = self.canvas.copy_from_bbox(self.fig.bbox)
+        # The caption changes every frame: Pillow draws it on the frame (matplotlib's text
+        # rendering would take two thirds of a frame's time), in matplotlib's own mono font.
+        from matplotlib import font_manager
+        from PIL import ImageFont
+
+        self.font = ImageFont.truetype(font_manager.findfont("DejaVu Sans Mono"), 13)
+        self.caption, self.caption_colour = "", "black"
 
     def draw(self) -> np.ndarray:
+        from PIL import Image, ImageDraw
+
         self.canvas.restore_region(self.background)
         for artist in self.artists:
             self.fig.draw_artist(artist)
-        return np.asarray(self.canvas.buffer_rgba())[:, :, :3].copy()
+        image = Image.fromarray(np.asarray(self.canvas.buffer_rgba())[:, :, :3])
+        ImageDraw.Draw(image).multiline_text((20, 40), self.caption, fill=self.caption_colour,
+                                             font=self.font, spacing=4)
+        return np.asarray(image)
 
 
 def _ray_segments(pose, state: int) -> tuple[list, list]:
@@ -175,12 +185,12 @@ def frames(rec: Recording, arena, indices: np.ndarray, n_targets: int | None = N
             k = learned[-1]
             phase = (f"LEARNING  phase {k + 1} after a {rec.phase_reason[k]}, then download {downloads}"
                      + (f" ({learned.size} phases since the last frame)" if learned.size > 1 else ""))
-            scene.caption.set_color("darkorange")
+            scene.caption_colour = "darkorange"
         else:
             phase = "execution"
-            scene.caption.set_color("black")
+            scene.caption_colour = "black"
         goal = f"/{n_targets}" if n_targets else ""
-        scene.caption.set_text(
+        scene.caption = (
             f"interaction {int(rec.interaction[i]):>6,} of {total:,}   targets {len(t)}{goal}   "
             f"crashes {len(c)}\nphase: {phase}\ndownloads {downloads}   state {int(states[i]):08b} (x7..x0)")
         previous = i
