@@ -97,7 +97,7 @@ class _Scene:
         from matplotlib.backends.backend_agg import FigureCanvasAgg
         from matplotlib.collections import LineCollection
         from matplotlib.figure import Figure
-        from matplotlib.patches import Circle
+        from matplotlib.patches import Circle, Rectangle
 
         self.fig = Figure(figsize=(FRAME_PX[0] / _DPI, FRAME_PX[1] / _DPI), dpi=_DPI)
         self.canvas = FigureCanvasAgg(self.fig)
@@ -112,6 +112,7 @@ class _Scene:
         self.crashes, = ax.plot([], [], "x", ms=7, mew=1.8, color="red", zorder=9, **anim)
         self.rays = LineCollection([], lw=1.4, zorder=6, **anim)
         ax.add_collection(self.rays)
+        self.rays.set_clip_path(Rectangle((0, 0), arena.size_mm, arena.size_mm, transform=ax.transData))
         self.robot = Circle((0, 0), ROBOT_RADIUS_MM, fc="khaki", ec="black", lw=1.0, zorder=7, **anim)
         ax.add_patch(self.robot)
         self.heading, = ax.plot([], [], color="black", lw=2.0, zorder=8, **anim)
@@ -183,8 +184,8 @@ def frames(rec: Recording, arena, indices: np.ndarray, n_targets: int | None = N
         downloads = 1 + int(np.sum(phase_at <= i))  # the first controller, then one per phase
         if learned.size:
             k = learned[-1]
-            phase = (f"LEARNING  phase {k + 1} after a {rec.phase_reason[k]}, then download {downloads}"
-                     + (f" ({learned.size} phases since the last frame)" if learned.size > 1 else ""))
+            more = f" (+{learned.size - 1} since the last frame)" if learned.size > 1 else ""
+            phase = f"LEARNING {k + 1} after a {rec.phase_reason[k]} -> download {downloads}{more}"
             scene.caption_colour = "darkorange"
         else:
             phase = "execution"
