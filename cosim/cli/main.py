@@ -8,6 +8,8 @@
     ehw bench     [MODULE ...] [--out DIR] [--figures results/bench.json]
     ehw arena     [--arena NAME|FILE ...] [--out DIR]
     ehw baseline  [--arena default] [--seeds 5] [--out DIR]
+    ehw replay    [RUN_DIR] [--fps 15] [--max-seconds 30] [--format auto|mp4|gif]   (cosim.report)
+    ehw report    [RUN_DIR] [--fps 15] [--max-seconds 30]      (report.html; also after sim/offline/compare)
 
 One parser module: each subcommand takes its module's own argument definitions (``add_arguments``
 of ``cosim.offline.run``, ``sim_world.render``, ...; for ``sim`` those of the on-line experiment),
