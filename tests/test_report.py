@@ -90,6 +90,16 @@ def test_the_mp4_decodes_to_its_frames_and_successive_frames_differ(sim_run, tmp
     assert all(changed), f"frames {[i for i, c in enumerate(changed) if not c]} equal the next"
 
 
+def test_the_gif_fallback_is_half_size_at_most_ten_frames_a_second(sim_run, tmp_path, capsys):
+    import imageio.v2 as imageio
+
+    gif = tmp_path / "replay.gif"
+    assert main(["replay", str(sim_run), "--fps", "20", "--max-seconds", "2", "--quiet", "--out", str(gif)]) == 0
+    assert capsys.readouterr().out.strip() == f"wrote {gif}"
+    frames = imageio.mimread(gif)
+    assert len(frames) == 20 and frames[0].shape[:2] == (360, 320)  # 40 frames at 20 fps, every second one
+
+
 def test_sim_writes_a_self_contained_report(sim_run):
     html = (sim_run / REPORT).read_text()
     assert (sim_run / "replay.mp4").is_file() or (sim_run / "replay.gif").is_file()

@@ -132,9 +132,10 @@ def compare_boxplot(compare: dict) -> bytes | None:
     a1.set_xscale("log")
     a1.set_xlabel("interactions per lifetime (log)")
     a2.boxplot(targets, orientation="horizontal", tick_labels=rows)
+    a2.tick_params(axis="y", labelleft=False)  # the same rows as on the left
     a2.set_xlabel("targets reached")
+    a1.tick_params(axis="y", labelsize=7)
     for ax in (a1, a2):
         ax.grid(alpha=0.3)
-        ax.tick_params(axis="y", labelsize=7)
     fig.suptitle("every method over the seeds", fontsize=10)
     return _png(fig)

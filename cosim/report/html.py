@@ -152,11 +152,16 @@ def _compare_context(run_dir: Path, compare: dict) -> dict:
     for name, figs in paper.items():
         rows.append((f"paper, {name}", [_number(figs.get(k)) if figs.get(k) is not None else "-"
                                         for k in COMPARE_COLUMNS]))
+    try:
+        markdown = (run_dir / "compare.md").read_text()
+    except OSError:
+        markdown = ""
     box = figures.compare_boxplot(compare)
     seeds = compare.get("seeds") or []
     return {"title": f"Every method over {len(seeds)} seeds, arena {compare.get('arena')!r}",
             "compare_rows": rows, "compare_columns": [c.replace("_", " ") for c in COMPARE_COLUMNS],
-            "compare_seeds": ", ".join(str(s) for s in seeds), "compare_box": _b64(box) if box else None}
+            "compare_seeds": ", ".join(str(s) for s in seeds), "compare_box": _b64(box) if box else None,
+            "compare_md": markdown}
 
 
 def report_context(run_dir: Path, fps: float = DEFAULT_FPS, max_seconds: float = DEFAULT_MAX_SECONDS,

@@ -222,7 +222,7 @@ def write_video(rec: Recording, arena, path: Path, fps: float = DEFAULT_FPS,
         with writer:
             for frame in tqdm(frames(rec, arena, indices[::step], n_targets, title), total=len(indices[::step]),
                               unit="frame", desc="replay", file=sys.stderr, disable=not progress):
-                writer.append_data(frame if step == 1 and path.suffix == ".mp4" else frame[::2, ::2])
+                writer.append_data(frame if path.suffix == ".mp4" else frame[::2, ::2])
         os.replace(partial, path)
     finally:
         partial.unlink(missing_ok=True)
