@@ -60,12 +60,21 @@ def _number(value) -> str:
 
 
 def summary_rows(summary: dict, paper: dict) -> list[tuple[str, str, str, str]]:
-    """(label, this run, the paper, ratio) for each figure the paper gives."""
+    """(label, this run, the paper, ratio) for each figure the paper gives; a lifetime continued
+    past 64 targets gives its figures at the 64th (``at_64_targets``), as its summary table does."""
+    figures_at = dict(summary)
+    at64 = summary.get("at_64_targets")
+    if at64:
+        figures_at.update({k: at64[k] for k in ("interactions", "generations", "world_states", "transitions")
+                           if k in at64})
+        figures_at["targets_reached"] = at64.get("target", 64)
+        population = (summary.get("config") or {}).get("population")
+        figures_at["genetic_operations"] = at64.get("generations", 0) * population if population else None
     rows = []
     for key, label in SUMMARY_LABELS.items():
-        if key not in paper or key not in summary:
+        if key not in paper or figures_at.get(key) is None:
             continue
-        ours, theirs = summary[key], paper[key]
+        ours, theirs = figures_at[key], paper[key]
         ratio = f"{ours / theirs:.2f}x" if isinstance(ours, (int, float)) and theirs else "-"
         rows.append((label, _number(ours), _number(theirs), ratio))
     return rows
@@ -77,6 +86,9 @@ def _notes(summary: dict, online: bool) -> list[str]:
         reasons = ", ".join(f"{k} {v}" for k, v in summary.get("phase_reasons", {}).items())
         notes.append(f"{summary.get('learning_phases', 0)} learning phases (the paper: about 48): {reasons}; "
                      f"backend {summary.get('backend')}; wall time {summary.get('wall_time_s', 0):.1f} s.")
+        if summary.get("at_64_targets"):
+            notes.append(f"the table gives the figures at the 64th target; continued to {summary['targets_reached']} "
+                         f"targets: {summary['interactions']:,} interactions, {summary['generations']:,} generations.")
     else:
         notes.append(f"reached every target: {summary.get('reached_all_targets')}; "
                      f"wall time {summary.get('wall_time_s', 0):.1f} s.")
