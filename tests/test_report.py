@@ -195,7 +195,8 @@ def test_report_in_chromium(sim_run):
                     if (v.readyState < 1) await new Promise(r => v.addEventListener('loadedmetadata', r, {once: true}));
                     const start = v.currentTime;
                     await v.play();
-                    await new Promise(r => setTimeout(r, 800));
+                    for (let waited = 0; v.currentTime <= start && waited < 10000; waited += 100)
+                        await new Promise(r => setTimeout(r, 100));  // a loaded machine decodes late
                     return {duration: v.duration, start: start, now: v.currentTime, width: v.videoWidth,
                             height: v.videoHeight, error: v.error && v.error.code};
                 }""")
