@@ -163,6 +163,7 @@ def frames(rec: Recording, arena, indices: np.ndarray, n_targets: int | None = N
     phase_at = phase_entries(rec)
     total = int(rec.interaction[-1]) if len(rec.interaction) else 0
     scene = _Scene(rec, arena, title)
+    online = rec.method.startswith("online")  # the off-line path has no phases nor downloads
     previous = -1
     for i in indices:
         i = int(i)
@@ -191,9 +192,11 @@ def frames(rec: Recording, arena, indices: np.ndarray, n_targets: int | None = N
             phase = "execution"
             scene.caption_colour = "black"
         goal = f"/{n_targets}" if n_targets else ""
+        learning = (f"phase: {phase}\ndownloads {downloads}   " if online else
+                    "the best controller of the evolution, in the noise-free world\n")
         scene.caption = (
             f"interaction {int(rec.interaction[i]):>6,} of {total:,}   targets {len(t)}{goal}   "
-            f"crashes {len(c)}\nphase: {phase}\ndownloads {downloads}   state {int(states[i]):08b} (x7..x0)")
+            f"crashes {len(c)}\n{learning}state {int(states[i]):08b} (x7..x0)")
         previous = i
         yield scene.draw()
 
