@@ -82,7 +82,7 @@ def test_console_script_and_make_use_one_simulator(monkeypatch):
     """`ehw sim --backend cocotb` and `make sim BACKEND=cocotb` ran Icarus and Verilator."""
     import argparse
 
-    from cosim.cli.main import resolve_hdl_settings
+    from cosim.cli.options import resolve_hdl_settings
 
     monkeypatch.delenv("EHW_SIM", raising=False)
     monkeypatch.delenv("EHW_HDL_SAMPLE", raising=False)

@@ -1,5 +1,5 @@
 """`ehw compare`, `ehw baseline`, `ehw arena` and `ehw bench` (issue 15, second round): one option
-table for `ehw compare` and `python -m cosim.compare.run`, every input checked before any work, and
+table for `ehw compare`, every input checked before any work, and
 run folders that keep every run (a fresh folder and `latest`; an `--out` holding a run refused).
 
 Each test failed before this round: compare passed its arguments through (no --config, no
@@ -9,14 +9,11 @@ defaults in its help), baseline/arena/bench wrote fixed files that the next run 
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 import threading
 import time
 from pathlib import Path
 
 import pytest
-from conftest import REPO_ROOT
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from test_cli import _arena_file, _one_error, ehw  # noqa: F401  (the fixture)
@@ -48,18 +45,6 @@ def test_compare_help_shows_every_option_and_its_default(ehw):
                  "--config FILE", "--limit-seeds ROW=N", "--cluster", "--cache DIR", "--fresh", "--jobs J"):
         assert flag in text, flag
     assert "(default: 5)" in text and "(default: results/compare/cache)" in text
-
-
-def test_compare_has_one_option_table():
-    """`ehw compare` and `python -m cosim.compare.run` take the same options (one definition)."""
-    import cosim.cli.main
-    from cosim.compare import run as compare
-
-    cosim.cli.main.build_parser()
-    ehw_options = {a.dest for a in cosim.cli.main._SUBPARSERS["compare"]._actions}
-    module_options = {a.dest for a in compare.build_parser()._actions}
-    # ehw's own: --config, and --no-report (the report is written by the command line, cosim.cli.report)
-    assert ehw_options - module_options == {"config", "no_report"} and module_options <= ehw_options
 
 
 @pytest.mark.parametrize("args, words", [
@@ -203,22 +188,6 @@ def test_compare_reuse_and_render_read_an_earlier_comparison(ehw, tmp_path):
     (tmp_path / "second/compare.md").unlink()
     assert ehw("compare", "--render", "second/compare.json")[0] == 0
     assert "reactive baseline" in (tmp_path / "second/compare.md").read_text()
-
-
-def test_python_m_cosim_compare_is_the_same_command_without_cosim_cli(tmp_path):
-    """The lower-layer form: its own parser from the one option table, the same checks and
-    run folders, and no import of cosim.cli.main."""
-    code = ("import sys; from cosim.compare import run as compare; status = compare.main(sys.argv[1:]); "
-            "assert 'cosim.cli.main' not in sys.modules, 'imported cosim.cli.main'; raise SystemExit(status)")
-    run = lambda *args: subprocess.run([sys.executable, "-c", code, *args], cwd=tmp_path, text=True,  # noqa: E731
-                                       capture_output=True, env={"PYTHONPATH": str(REPO_ROOT), "PATH": "/usr/bin:/bin"})
-    bad = run("--seeds", "0")
-    _one_error(bad.returncode, bad.stderr, "--seeds")
-    bad = run("--seeds", "x")
-    _one_error(bad.returncode, bad.stderr, "--seeds", "'x'")
-    good = run(*SMALL)
-    assert good.returncode == 0, good.stderr
-    assert (tmp_path / "results/compare" / LATEST / "compare.json").is_file()
 
 
 # -- baseline, arena, bench: run folders ------------------------------------------------------------

@@ -1,6 +1,6 @@
 """The ``amaranth`` board backend: both EHW boards cycle-accurate in Amaranth's simulator.
 
-    python -m cosim.online.run --backend amaranth --seed 1      (make sim BACKEND=amaranth)
+    ehw sim --backend amaranth --seed 1      (make sim BACKEND=amaranth)
 
 One ``hdl.system_top.SystemTop`` (controller EHW + evaluator EHW + population streamer) lives in
 one ``amaranth.sim.Simulator`` for the whole run. Amaranth 0.5 cannot add a testbench to a running

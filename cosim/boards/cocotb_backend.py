@@ -91,7 +91,7 @@ def active_system() -> CocotbSystem:
     if _active_system is None:
         raise RuntimeError(
             "the cocotb backend runs the experiment inside the simulator: start it with "
-            "`python -m cosim.online.run --backend cocotb` or cosim.launch.cocotb_sim.run_online_cocotb(config, out)"
+            "`ehw sim --backend cocotb` or cosim.launch.cocotb_sim.run_online_cocotb(config, out)"
         )
     return _active_system
 

@@ -17,13 +17,14 @@ from base.options import PROG, add_common, fill_help, option_keys, write_config
 from base.runs import open_run
 from cosim.cli.options import LINK_BACKENDS, RESULTS, add_hdl_options, hdl_environment, resolve_hdl_settings
 from cosim.cli.report import add_report_flag, report_at_end
+from cosim.online.config import OPTIONS
 from cosim.online.learning_phase import check_learning_backend
 
 # -- sim: the on-line experiment ------------------------------------------------------------------
 
-# The on-line command line lives with the experiment (cosim.cli.online: add_arguments,
-# config_from_args); the reporting in cosim.online.report; the cocotb launcher in
-# cosim.launch.cocotb_sim (imported when used: it brings cocotb's runner).
+# The on-line options: cosim.cli.online (add_arguments, config_from_args); the reporting:
+# cosim.online.report; the cocotb launcher: cosim.launch.cocotb_sim (imported when used: it brings
+# cocotb's runner).
 
 
 def _online_cli():
@@ -45,7 +46,8 @@ def _online_reporting():
     return online_report.write_results, online_report.summary_table
 
 
-SIM_DEST_OF = {"n_targets": "targets", "distance_rule": "distance"}
+# The OnlineConfig fields whose option has another name (config file key -> the option's dest).
+SIM_DEST_OF = {field: flag.lstrip("-") for field, flag in OPTIONS.items()}
 SIM_RUN_OPTIONS = {"backend": str, "simulator": str | None, "hdl_sample": int | None,
                    "waves": bool | None, "clock_hz": float | None, "port": str | None,
                    "port2": str | None, "baud": float | None}
@@ -54,7 +56,7 @@ SIM_RUN_OPTIONS = {"backend": str, "simulator": str | None, "hdl_sample": int | 
 def sim_parser(p) -> None:
     add_arguments, _ = _online_cli()
     add_arguments(p)
-    fill_help(p, "the run config's {dest} (cosim.online.run.OnlineConfig)")
+    fill_help(p, "the run config's {dest} (cosim.online.config.OnlineConfig)")
     for action in p._actions:  # the options are checked once more on the config they make
         if action.dest == "no_plots":
             action.help = "write no figures (an earlier run's figures are removed all the same)"

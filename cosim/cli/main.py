@@ -46,18 +46,10 @@ from typing import Sequence
 
 from base.config_file import field_types
 from base.errors import ArgumentParser, UserError, run_main
-from base.options import (
-    PROG,
-    HelpFormatter,
-    add_common,
-    apply_config_file,
-    option_keys,
-    resume_config,
-    write_config,
-)
+from base.options import PROG, HelpFormatter, add_common, apply_config_file, option_keys, resume_config, write_config
 from base.runs import RunLock, open_run
 from cosim.cli.commands import SIM_DEST_OF, SIM_RUN_OPTIONS, cmd_offline, cmd_sim, offline_parser, sim_parser
-from cosim.cli.options import RESULTS, resolve_hdl_settings
+from cosim.cli.options import RESULTS
 from cosim.cli.report import add_report_flag, cmd_replay, cmd_report, replay_parser, report_at_end, report_parser
 from cosim.compare.options import COMPARE_ROOT
 
@@ -85,10 +77,22 @@ def _record_options(folder: Path, args, sub, what: str) -> None:
     write_config(folder, {k: (str(v) if isinstance(v, Path) else v) for k, v in options.items()}, {}, what)
 
 
+def _in_run_folder(run, args, sub, what: str, markers: tuple, label: str | None = None) -> int:
+    """``run(args)`` with ``args.out`` a run folder of ``results/<what>/`` (its options recorded,
+    the files of an earlier run it replaces removed)."""
+    with open_run(args.out, RESULTS / what, force=args.force, checkpoint=None, markers=markers,
+                  label=label) as run_dir:
+        _record_options(run_dir.path, args, sub, what)
+        args.out = run_dir.path
+        run(args)
+        run_dir.remove_stale()
+    return 0
+
+
 def _compare_parser(p) -> None:
     from cosim.compare.options import add_arguments
 
-    add_arguments(p)  # the one option table (python -m cosim.compare.run uses it too)
+    add_arguments(p)
     add_common(p, seed=False, resume=False, force=False, quiet=False)  # --config
     add_report_flag(p)
 
@@ -132,13 +136,7 @@ def cmd_arena(args, extras: dict, sub=None) -> int:
 
     for name in args.arena or ARENAS:  # every file checked before anything is written
         load_arena(name)
-    with open_run(args.out, RESULTS / "arena", force=args.force, checkpoint=None,
-                  markers=("arena_*.png",)) as run_dir:
-        _record_options(run_dir.path, args, sub, "arena")
-        args.out = run_dir.path
-        render.run_from_args(args)
-        run_dir.remove_stale()
-    return 0
+    return _in_run_folder(render.run_from_args, args, sub, "arena", ("arena_*.png",))
 
 
 def _baseline_parser(p) -> None:
@@ -165,13 +163,7 @@ def cmd_baseline(args, extras: dict, sub=None) -> int:
     if args.tune:  # the search prints its table and writes no file
         return baseline.run_from_args(args) or 0
     label = f"seeds{args.first_seed}-{args.first_seed + args.seeds - 1}" if args.seeds else "noise-free"
-    with open_run(args.out, RESULTS / "baseline", force=args.force, checkpoint=None,
-                  markers=("baseline.json",), label=label) as run_dir:
-        _record_options(run_dir.path, args, sub, "baseline")
-        args.out = run_dir.path
-        baseline.run_from_args(args)
-        run_dir.remove_stale()
-    return 0
+    return _in_run_folder(baseline.run_from_args, args, sub, "baseline", ("baseline.json",), label)
 
 
 # Subcommands whose module parses its own options (by module name: the command line imports none

@@ -127,7 +127,7 @@ def markdown(report: dict) -> str:
               "CPU seconds: the lifetime's worker process."]
     if report.get("online_distance_rule", "forward") != "forward":
         lines += ["", f"On-line runs with the option dist[a] = {report['online_distance_rule']} (the "
-                  "paper's first reading, not SPEC section 7; docs/online.md, round 5)."]
+                  "paper's first reading, not SPEC section 7; docs/research-log.md, on-line round 5)."]
     if report.get("online_options"):
         lines += ["", "On-line options: " + ", ".join(f"`{k}={v}`" for k, v in report["online_options"].items())
                   + " (defaults otherwise)."]

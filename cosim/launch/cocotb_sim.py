@@ -1,8 +1,8 @@
 """The launcher of the cocotb backend: build the system top's Verilog and run the lifetime in it.
 
-    EHW_SIM=verilator python -m cosim.online.run --backend cocotb --seed 1   (make sim BACKEND=cocotb [SIM=icarus] [WAVES=1])
+    ehw sim --backend cocotb [--simulator verilator|icarus] --seed 1   (make sim BACKEND=cocotb [SIM=icarus] [WAVES=1])
 
-The process that is started (``python -m cosim.online.run``) only launches the simulation
+The process of ``ehw sim`` only launches the simulation
 (:func:`run_online_cocotb`): it writes ``system_top.v`` (``hdl.system_top.SystemTop``: controller
 EHW + evaluator EHW + population streamer), builds it with Icarus or Verilator (``EHW_SIM``)
 through ``cosim.boards.cocotb_run.run_cocotb`` and runs the cocotb test of ``cosim.launch.cocotb_test``,

@@ -177,7 +177,7 @@ def make_uart_boards(reflex: bool = True, distance_rule: str = DEFAULT_DISTANCE_
 
     if _active_line is None:
         raise RuntimeError("the uart backend runs the experiment inside the simulator: start it with "
-                           "`python -m cosim.online.run --backend uart` (make sim BACKEND=uart)")
+                           "`ehw sim --backend uart` (make sim BACKEND=uart)")
     return boards_over([LinkClient(_active_line)], reflex=reflex, check=check, distance_rule=distance_rule)
 
 

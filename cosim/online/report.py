@@ -53,7 +53,7 @@ def summary(run) -> dict:
 
 def interaction_breakdown(phases: list[dict], target_log: list[dict], interactions: int,
                           block: int = 16) -> dict:
-    """Where a lifetime's interactions went (docs/online.md, round 6).
+    """Where a lifetime's interactions went (docs/research-log.md, on-line round 6).
 
     - ``in_failed_segments``: the steps from the later of the last target and the last failure
       up to each failure (crash or stop), i.e. what the failures cost; ``per_failure`` its mean;
@@ -118,7 +118,7 @@ def summary_table(summary: dict) -> str:
     lines.append(f"phase reasons: {reasons}; wall time {summary['wall_time_s']:.1f} s")
     if summary["config"].get("distance_rule", "forward") != "forward":
         lines.append(f"fitness distance term: dist[a] = {summary['config']['distance_rule']} "
-                     "(the paper's first reading, not SPEC section 7; docs/online.md, round 5)")
+                     "(the paper's first reading, not SPEC section 7; docs/research-log.md, on-line round 5)")
     if "adaptation" in summary:
         ad = summary["adaptation"]
         lines.append(f"adaptation: IR bit {summary['config']['blind_bit']} blinded after target "

@@ -1,7 +1,7 @@
 """The on-line model-based method (paper section 5.2, SPEC section 7): one robot lifetime.
 
-    python -m cosim.online.run --seed 1 [--backend reference|amaranth|cocotb] [--resume] ...
-    (the command line: cosim.cli.online; make sim)
+    ehw sim --seed 1 [--backend reference|amaranth|cocotb|serial|uart] [--resume] ...
+    (make sim; the options: cosim.cli.online)
 
 A lifetime alternates two phases, in sequence as in the paper:
 
