@@ -35,7 +35,8 @@ LATEST = "latest"
 # What marks a folder as holding a run, and the files a run writes (deleted by --force and, when
 # a run does not write them again, after it: no earlier run's plot stays beside a new summary).
 RUN_MARKERS = ("summary.json", "checkpoint.json")
-RESULT_SUFFIXES = (".json", ".png", ".md", ".toml", ".csv", ".txt", ".vcd", ".tmp")
+RESULT_SUFFIXES = (".json", ".png", ".md", ".toml", ".csv", ".txt", ".vcd", ".tmp",
+                   ".npz", ".html", ".mp4", ".gif")  # the replay's recording, the report and its video
 
 
 class RunFolderError(UserError):

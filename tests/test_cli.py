@@ -140,7 +140,7 @@ def test_force_replaces_and_leaves_no_stale_plot(ehw, tmp_path):
     assert ehw("sim", "--resume", "--out", "run2", "--quiet", "--no-plots")[0] == 0
     assert not list((tmp_path / "run2").glob("*.png"))
     assert {p.name for p in (tmp_path / "run2").iterdir()} == {
-        ".lock", "checkpoint.json", "config.toml", "sessions.json", "summary.json"}
+        ".lock", "checkpoint.json", "config.toml", "sessions.json", "summary.json", "lifetime.npz"}
 
 
 def test_a_folder_in_use_is_refused_and_a_dead_lock_taken_over(ehw, tmp_path):

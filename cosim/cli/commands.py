@@ -16,6 +16,7 @@ from base.files import atomic_write_json
 from base.options import PROG, add_common, fill_help, option_keys, write_config
 from base.runs import open_run
 from cosim.cli.options import LINK_BACKENDS, RESULTS, add_hdl_options, hdl_environment, resolve_hdl_settings
+from cosim.cli.report import add_report_flag, report_at_end
 from cosim.online.config import OPTIONS
 from cosim.online.learning_phase import check_learning_backend
 
@@ -68,6 +69,7 @@ def sim_parser(p) -> None:
     add_common(p, out_help="the run folder (default: a fresh results/model_based/<date>-<time>-seed<S>/, "
                             "with results/model_based/latest pointing at it)")
     add_hdl_options(p)
+    add_report_flag(p)
 
 
 def _flag_name(field: str) -> str:
@@ -203,6 +205,7 @@ def cmd_sim(args, extras: dict, sub=None) -> int:
             print("\n".join(link_lines(json.loads((out / "link.json").read_text()))))
         figures = sorted(out.glob("*.png"))
         print(f"wrote {out / 'summary.json'}" + (f" and {len(figures)} figures" if figures else ""))
+        report_at_end(args, out, plots)
     return 0
 
 
@@ -215,6 +218,7 @@ def offline_parser(p) -> None:
     offline.add_arguments(p)
     add_common(p, out_help="the run folder (default: a fresh results/model_free/<date>-<time>-seed<S>/, "
                             "with results/model_free/latest pointing at it)")
+    add_report_flag(p)
 
 
 def cmd_offline(args, extras: dict, sub=None) -> int:
@@ -245,6 +249,7 @@ def cmd_offline(args, extras: dict, sub=None) -> int:
         write_config(out, {k: (str(v) if isinstance(v, Path) else v) for k, v in options.items()}, {}, "offline")
         run_offline_from_args(args, out)
         run_dir.remove_stale()
+        report_at_end(args, out, not args.no_plots)
     return 0
 
 

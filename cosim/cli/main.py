@@ -8,6 +8,8 @@
     ehw bench     [MODULE ...] [--out DIR] [--figures results/bench.json]
     ehw arena     [--arena NAME|FILE ...] [--out DIR]
     ehw baseline  [--arena default] [--seeds 5] [--out DIR]
+    ehw replay    [RUN_DIR] [--fps 15] [--max-seconds 30] [--format auto|mp4|gif]   (cosim.report)
+    ehw report    [RUN_DIR] [--fps 15] [--max-seconds 30]      (report.html; also after sim/offline/compare)
 
 One parser module: each subcommand takes its module's own argument definitions (``add_arguments``
 of ``cosim.offline.run``, ``sim_world.render``, ...; for ``sim`` those of the on-line experiment),
@@ -48,6 +50,7 @@ from base.options import PROG, HelpFormatter, add_common, apply_config_file, opt
 from base.runs import RunLock, open_run
 from cosim.cli.commands import SIM_DEST_OF, SIM_RUN_OPTIONS, cmd_offline, cmd_sim, offline_parser, sim_parser
 from cosim.cli.options import RESULTS
+from cosim.cli.report import add_report_flag, cmd_replay, cmd_report, replay_parser, report_at_end, report_parser
 from cosim.compare.options import COMPARE_ROOT
 
 # -- the other subcommands ------------------------------------------------------------------------
@@ -91,12 +94,18 @@ def _compare_parser(p) -> None:
 
     add_arguments(p)
     add_common(p, seed=False, resume=False, force=False, quiet=False)  # --config
+    add_report_flag(p)
 
 
 def cmd_compare(args, extras: dict, sub=None) -> int:
     from cosim.compare import run as compare
 
-    return compare.run_from_args(args)
+    status = compare.run_from_args(args)
+    if status == 0 and args.render is None:  # the folder it wrote: --out, or the one 'latest' points at
+        folder = Path(args.out) if args.out is not None else COMPARE_ROOT / "latest"
+        with RunLock(folder).acquire():
+            report_at_end(args, folder)
+    return status
 
 
 def _verilog_parser(p) -> None:
@@ -187,6 +196,8 @@ COMMANDS = {
     "verilog": (_verilog_parser, cmd_verilog, "the Verilog of the EHW blocks -> build/verilog/"),
     "arena": (_arena_parser, cmd_arena, "render arenas -> results/arena/<date>-<time>/arena_<name>.png"),
     "baseline": (_baseline_parser, cmd_baseline, "the hand-written reactive baseline through the 64 legs -> results/baseline/<date>-<time>-seeds<A>-<B>/"),
+    "replay": (replay_parser, cmd_replay, "a lifetime as a video (the arena, the robot, its IR bits, trail, crashes, targets, phases) -> RUN_DIR/replay.mp4"),
+    "report": (report_parser, cmd_report, "one self-contained report.html of a run folder (summary, replay, curves, world model, controller, config)"),
 }
 _SUBPARSERS: dict[str, argparse.ArgumentParser] = {}
 

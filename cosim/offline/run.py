@@ -421,7 +421,7 @@ def run_offline(
     atomic_write_json(out / "history.json", state["history"])
     if plots:
         summary["figures"] = plot_results(out, state["history"], summary["best_genome"], arena,
-                                          max_leg_steps, n_targets)
+                                          max_leg_steps, n_targets, seed)
     atomic_write_json(out / "summary.json", summary, indent=2)
     return summary
 
