@@ -42,6 +42,7 @@ import sys
 from pathlib import Path
 from typing import Sequence
 
+from base import environ
 from base.config_file import field_types
 from base.errors import ArgumentParser, UserError, run_main
 from base.options import (
@@ -230,6 +231,7 @@ def _main(argv: Sequence[str] | None) -> int:
         # The module parses its own options (argparse cannot hand on "--x ..." as a remainder).
         return commands[argv[0]][1](argparse.Namespace(passed=argv[1:]), {})
     args = parser.parse_args(argv)
+    environ.check_all()  # every variable the project reads, before any work (base.environ)
     if args.command is None:
         parser.print_help(sys.stderr)
         return 2

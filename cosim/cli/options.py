@@ -10,6 +10,7 @@ import math
 import os
 from pathlib import Path
 
+from base import environ
 from base.errors import UserError
 
 RESULTS = Path("results")
@@ -18,38 +19,9 @@ RESULTS = Path("results")
 # -- settings from options, the environment as a fallback -------------------------------------------
 
 
-def _from_env(name: str, parse, what: str):
-    """``parse(os.environ[name])``, None when unset or empty; a bad value is a UserError."""
-    raw = os.environ.get(name, "")
-    if raw == "":
-        return None
-    try:
-        return parse(raw)
-    except (ValueError, TypeError):
-        raise UserError(f"environment variable {name}={raw!r}: {what}") from None
-
-
-def _positive_hz(text) -> float:
-    hz = float(text)
-    if not (math.isfinite(hz) and hz > 0):
-        raise ValueError(hz)
-    return hz
-
-
-def _count(text) -> int:
-    value = int(str(text), 10)
-    if value < 0:
-        raise ValueError(value)
-    return value
-
-
-def _flag(text) -> bool:
-    value = str(text).strip().lower()
-    if value in ("1", "true", "yes", "on"):
-        return True
-    if value in ("", "0", "false", "no", "off"):
-        return False
-    raise ValueError(value)
+def _from_env(name: str):
+    """The typed value of variable ``name`` (``base.environ``), None when unset or empty."""
+    return environ.read(name)
 
 
 def resolve_hdl_settings(args) -> dict:
@@ -57,28 +29,26 @@ def resolve_hdl_settings(args) -> dict:
     ``hdl_sample``, ``waves``, ``clock_hz`` (see :func:`hdl_environment`)."""
     from cosim.boards.cocotb_run import SIMULATORS
 
-    simulator = getattr(args, "simulator", None) or _from_env("EHW_SIM", str, "") or "verilator"
+    simulator = getattr(args, "simulator", None) or _from_env("EHW_SIM") or "verilator"
     if simulator not in SIMULATORS:
         source = "--simulator" if getattr(args, "simulator", None) else "environment variable EHW_SIM"
         raise UserError(f"{source}: {simulator!r} is not a simulator; choose one of {', '.join(SIMULATORS)}")
     sample = getattr(args, "hdl_sample", None)
     if sample is None:
-        sample = _from_env("EHW_HDL_SAMPLE", _count, "a count of controllers (0: all)")
+        sample = _from_env("EHW_HDL_SAMPLE")
     if sample is None:  # all of them on cocotb+Verilator, a spot check of 1 where all take hours
         sample = 0 if (args.backend == "cocotb" and simulator == "verilator") else 1
     if sample < 0:
         raise UserError(f"--hdl-sample must be a count of controllers (0: all), got {sample!r}")
     waves = getattr(args, "waves", None)
     if waves is None:
-        waves = bool(_from_env("WAVES", _flag, "0 or 1"))
+        waves = bool(_from_env("WAVES"))
     clock = getattr(args, "clock_hz", None)
     if clock is not None and not (math.isfinite(clock) and clock > 0):
         raise UserError(f"--clock-hz must be a positive frequency in Hz, got {clock!r}")
     if clock is None:  # None: the measured Fmax of results/fpga.json, else the named default
-        clock = _from_env("EHW_CLOCK_HZ", _positive_hz, "not a positive frequency in Hz")
-    p_max = _from_env("EHW_SYSTEM_P_MAX", _count, "a population RAM depth")
-    if p_max == 0:
-        raise UserError("environment variable EHW_SYSTEM_P_MAX=0: a population RAM depth must be positive")
+        clock = _from_env("EHW_CLOCK_HZ")
+    p_max = _from_env("EHW_SYSTEM_P_MAX")
     return {"simulator": simulator, "hdl_sample": sample, "waves": waves,
             "clock_hz": None if clock is None else float(clock), **_link_settings(args)}
 
@@ -93,13 +63,13 @@ def _link_settings(args) -> dict:
     for name, backends in (("port", ("serial",)), ("port2", ("serial",)), ("baud", LINK_BACKENDS)):
         if getattr(args, name, None) is not None and backend not in backends:
             raise UserError(f"--{name} is for --backend {' or '.join(backends)}, not {backend}")
-    port = getattr(args, "port", None) or _from_env("EHW_PORT", str, "")
-    port2 = getattr(args, "port2", None) or _from_env("EHW_PORT2", str, "")
+    port = getattr(args, "port", None) or _from_env("EHW_PORT")
+    port2 = getattr(args, "port2", None) or _from_env("EHW_PORT2")
     baud = getattr(args, "baud", None)
     if baud is not None and not (math.isfinite(baud) and baud > 0):
         raise UserError(f"--baud must be a positive baud rate, got {baud!r}")
     if baud is None:
-        baud = _from_env("EHW_BAUD", _positive_hz, "not a positive baud rate")
+        baud = _from_env("EHW_BAUD")
     if backend == "serial":
         board = "one ulx3s-learner board" if hardware else "a ULX3S (ulx3s-system) or, with --port2, two iCEBreakers"
         if not port:

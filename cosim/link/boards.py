@@ -27,10 +27,9 @@ result silently.
 
 from __future__ import annotations
 
-import os
-
 import numpy as np
 
+from base import environ
 from cosim.boards.interfaces import BoardMismatch, EvalCounts
 from cosim.boards.reference import ReferenceControllerBoard, ReferenceEvaluatorBoard, checked_motion
 from cosim.boards.registry import register_backend
@@ -200,21 +199,14 @@ def open_port(port: str, baud: float):
 
 
 def _baud_from_env() -> float:
-    value = os.environ.get(BAUD_ENV, "") or str(DEFAULT_BAUD)
-    try:
-        baud = float(value)
-    except ValueError:
-        raise LinkError(f"{BAUD_ENV} must be a baud rate, got {value!r}") from None
-    if not baud > 0:
-        raise LinkError(f"{BAUD_ENV} must be positive, got {value!r}")
-    return baud
+    return environ.read(BAUD_ENV, float(DEFAULT_BAUD))
 
 
 def make_serial_boards(reflex: bool = True, distance_rule: str = DEFAULT_DISTANCE_RULE, check: bool = True,
                        port: str | None = None, port2: str | None = None, baud: float | None = None):
     """The boards on serial ports (default ``EHW_PORT``, ``EHW_PORT2``, ``EHW_BAUD``)."""
-    port = port or os.environ.get(PORT_ENV)
-    port2 = port2 or os.environ.get(PORT2_ENV) or None
+    port = port or environ.read(PORT_ENV)
+    port2 = port2 or environ.read(PORT2_ENV)
     if not port:
         raise LinkError(f"the serial backend needs a port: make sim BACKEND=serial PORT=/dev/ttyUSB1 "
                         f"[PORT2=...] (or {PORT_ENV}=...)")

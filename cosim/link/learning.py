@@ -131,11 +131,10 @@ def make_serial_learning_boards(config, seed: int, population, *, reflex: bool =
     """The ``serial`` backend's boards with ``--ga hardware``: (controller board, learning board)
     of one ``ulx3s-learner`` board on a serial port (default ``EHW_PORT``, ``EHW_BAUD``; ``ehw sim
     --port``, ``--baud``), a device or any pyserial URL."""
-    import os
-
+    from base import environ
     from cosim.link.boards import BAUD_ENV, PORT_ENV, _baud_from_env, open_port
 
-    port = port or os.environ.get(PORT_ENV)
+    port = port or environ.read(PORT_ENV)
     if not port:
         raise LinkError(f"the serial backend needs a port: with --ga hardware one ulx3s-learner board, "
                         f"--port /dev/ttyUSB1 (make sim BACKEND=serial PORT=...; or {PORT_ENV}=..., "

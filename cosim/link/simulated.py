@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import logging
 
+from base.environ import UART_LINES
 from cosim.boards.registry import register_backend
 from ga.motions import DEFAULT_DISTANCE_RULE
 
@@ -25,7 +26,7 @@ TOPLEVEL = "system_link_top"
 LEARNER_TOPLEVEL = "learner_link_top"  # --ga hardware: the LearnerLinkTop harness
 SIM_CLK_HZ = 25_000_000  # the ULX3S's oscillator; a whole number of ns a period (40)
 LINE_ENV = "EHW_UART_LINE"  # hdl (default: the host's UART in the simulation) or cocotbext
-LINES = ("hdl", "cocotbext")
+LINES = UART_LINES  # the values of LINE_ENV (base.environ reads it)
 
 _active_line = None  # the line of the running test (inside the simulator only)
 
