@@ -101,6 +101,7 @@ VARIABLES = {v.name: v for v in (
     Variable("EHW_PORT2", "a serial port (a device or a pyserial URL)", _text),
     Variable("EHW_BAUD", "a positive baud rate", _positive),
     Variable("EHW_UART_LINE", f"a simulated line, one of {', '.join(UART_LINES)}", _choice(*UART_LINES)),
+    Variable("EHW_LINE_FAULTS", "a fault spec flip=P,drop=P,silence=P,reset=N,seed=S (cosim.link.faults)", _text),
     Variable("EHW_FPGA_TOOLS", "a folder of the FPGA tools", _text),
     Variable("EHW_CLOCK_INSIDE", "0 or 1", flag, internal=True),
     Variable("EHW_LEARNER_CONFIG", "JSON", json.loads, internal=True),

@@ -53,16 +53,17 @@ def resolve_hdl_settings(args) -> dict:
             "clock_hz": None if clock is None else float(clock), **_link_settings(args)}
 
 
-LINK_BACKENDS = ("serial", "uart")  # the backends behind the UART host link (docs/host_link.md)
+LINK_BACKENDS = ("serial", "uart", "emulated")  # the backends behind the UART host link (docs/host_link.md)
 
 
 def _link_settings(args) -> dict:
     """``port``, ``port2`` (``--backend serial``) and ``baud`` (serial, uart): option >
     ``EHW_PORT`` / ``EHW_PORT2`` / ``EHW_BAUD`` > None, checked against the backend and ``--ga``."""
     backend, hardware = args.backend, getattr(args, "ga", "host") == "hardware"
-    for name, backends in (("port", ("serial",)), ("port2", ("serial",)), ("baud", LINK_BACKENDS)):
+    for name, backends in (("port", ("serial",)), ("port2", ("serial",)), ("baud", ("serial", "uart")),
+                           ("line_faults", LINK_BACKENDS)):
         if getattr(args, name, None) is not None and backend not in backends:
-            raise UserError(f"--{name} is for --backend {' or '.join(backends)}, not {backend}")
+            raise UserError(f"--{name.replace('_', '-')} is for --backend {' or '.join(backends)}, not {backend}")
     port = getattr(args, "port", None) or _from_env("EHW_PORT")
     port2 = getattr(args, "port2", None) or _from_env("EHW_PORT2")
     baud = getattr(args, "baud", None)
@@ -79,7 +80,26 @@ def _link_settings(args) -> dict:
             raise UserError(f"--ga hardware on --backend serial is one ulx3s-learner board on --port; "
                             f"--port2 {port2!r} (EHW_PORT2) is the host GA's second iCEBreaker")
     return {"port": port if backend == "serial" else None, "port2": port2 if backend == "serial" else None,
-            "baud": None if baud is None or backend not in LINK_BACKENDS else float(baud)}
+            "baud": None if baud is None or backend not in ("serial", "uart") else float(baud),
+            "line_faults": _line_faults(args, backend, hardware)}
+
+
+def _line_faults(args, backend: str, hardware: bool) -> str | None:
+    """``--line-faults`` (or ``EHW_LINE_FAULTS``) checked, as its canonical text; None: a clean line."""
+    from cosim.link.faults import parse_faults
+
+    given = getattr(args, "line_faults", None)
+    text = given if given is not None else _from_env("EHW_LINE_FAULTS")
+    faults = parse_faults(text, "--line-faults" if given is not None else "environment variable EHW_LINE_FAULTS")
+    if faults is None or backend not in LINK_BACKENDS:
+        return None
+    if faults.reset and backend == "serial":
+        raise UserError(f"--line-faults reset={faults.reset}: the host cannot reset a real board; power-cycle "
+                        "or re-plug it during the run instead (the host recovers the same way)")
+    if faults.reset and hardware:
+        raise UserError(f"--line-faults reset={faults.reset}: with --ga hardware the host keeps no mirror "
+                        "of the learning engine's population to restore after a reset (use --ga host)")
+    return faults.to_text() or None
 
 
 @contextlib.contextmanager
@@ -90,7 +110,8 @@ def hdl_environment(settings: dict):
               "WAVES": "1" if settings["waves"] else "0"}
     if settings["clock_hz"] is not None:  # else cosim.boards.hardware_time.measured_clock decides
         values["EHW_CLOCK_HZ"] = repr(settings["clock_hz"])
-    for key, name in (("port", "EHW_PORT"), ("port2", "EHW_PORT2"), ("baud", "EHW_BAUD")):
+    for key, name in (("port", "EHW_PORT"), ("port2", "EHW_PORT2"), ("baud", "EHW_BAUD"),
+                      ("line_faults", "EHW_LINE_FAULTS")):
         if settings.get(key) is not None:  # the link backends read them there (cosim.link.boards)
             values[name] = settings[key] if key != "baud" else repr(settings[key])
     saved = {k: os.environ.get(k) for k in values}
@@ -124,6 +145,11 @@ def add_hdl_options(p) -> None:
     p.add_argument("--baud", type=float, default=None, metavar="BAUD",
                    help="--backend serial or uart: the link's baud (default: $EHW_BAUD, else 115200 on "
                         "serial and the simulated clock / 4 on uart)")
+    p.add_argument("--line-faults", default=None, metavar="flip=P,drop=P,silence=P,reset=N,seed=S",
+                   help="--backend serial, uart or emulated: seeded faults on the link's line (bit flips "
+                        "and dropped bytes per byte, silent replies per frame, N board resets, dead=K: "
+                        "the line dies at frame K); the host detects and recovers each, the summary "
+                        "counts them (cosim.link.faults; default: $EHW_LINE_FAULTS, else none)")
     p.add_argument("--clock-hz", type=float, default=None, metavar="HZ",
                    help="FPGA clock of the hardware-time figures (default: $EHW_CLOCK_HZ, else the "
                         "measured Fmax in results/fpga.json, else 12e6, the iCEBreaker's)")

@@ -13,6 +13,12 @@ or says BAD_CRC / TRUNCATED (the board saw the request damaged) is sent again, a
 ``retries`` more times, then :class:`LinkError` names the port. The reply must echo the
 request's tag (a counter): a late reply to an earlier try is skipped, never taken for this one.
 Every command is idempotent, so a request executed twice (its first reply lost) does no harm.
+
+Board resets (a power glitch, a USB re-plug): the board then forgets its world model, rate codes,
+controller and population. The host counts the frames the board confirmed (OK replies); after a
+failed try, before the resend, it reads the board's own count (READ_COUNTERS): a count below the
+host's means the board restarted, and the host replays what the board held from its mirror (the
+``on_reset`` hooks of the boards over this client, ``cosim.link.boards``) before the resend.
 """
 
 from __future__ import annotations
@@ -52,6 +58,11 @@ from hdl.link_protocol import (
 RETRIES = 3  # resends of one request after an error reply or a timeout
 PIPELINE = 2  # LOAD_GENOME frames in flight (the board answers one while the next arrives)
 RETRY_STATUSES = (Status.BAD_CRC, Status.TRUNCATED)
+RESTORES = 5  # restores of one board reset before LinkError (a reset during the restore starts it again)
+
+
+class _ResetDuringRestore(Exception):
+    """The board reset again while its state was being restored: start the restore again."""
 
 
 class LinkError(UserError):
@@ -117,6 +128,10 @@ class LinkStats:
     bytes_received: int = 0
     requests: int = 0
     resends: int = 0
+    bytes_resent: int = 0  # request bytes sent again (resends; not the restores)
+    resets: int = 0  # board resets detected (its frame count went back)
+    restores: int = 0  # restores of the board's state from the host's mirror
+    restore_bytes: int = 0  # bytes both ways of the restores
     reasons: dict = field(default_factory=dict)
     by_command: dict = field(default_factory=dict)
 
@@ -150,6 +165,9 @@ class LinkClient:
         self.stats = LinkStats()
         self.identity: Identity | None = None  # set by expect()
         self._tag = 0
+        self.on_reset: list = []  # callables that restore the board's state (cosim.link.boards)
+        self.confirmed = 0  # frames the board executed for sure: its count can only be higher
+        self._probing = self._restoring = False
 
     # -- framing ------------------------------------------------------------------------------
 
@@ -194,10 +212,12 @@ class LinkClient:
                 self.stats.resends += 1
                 self.stats.note(last)
                 self.stream.reset_input_buffer()
+                self._check_reset()
             self._tag = (self._tag + 1) % 256
             frame = encode_frame(command, payload, tag=self._tag)
             self.stream.write(frame)
             self.stats.bytes_sent += len(frame)
+            self.stats.bytes_resent += len(frame) if attempt else 0
             while True:
                 reply = self._read_reply()
                 if isinstance(reply, str):
@@ -224,9 +244,50 @@ class LinkClient:
                 if reply_length is not None and len(body) != reply_length:
                     raise LinkError(f"{self.port}: {command.name} replied {len(body)} bytes, "
                                     f"expected {reply_length}")
+                self.confirmed += 1
                 return body
         raise LinkError(f"{self.port}: no good reply to {command.name} after {self.retries + 1} "
                         f"tries (last: {last}); is the board connected, configured and running?")
+
+    # -- board resets ---------------------------------------------------------------------------
+
+    def _check_reset(self) -> None:
+        """After a failed try: did the board restart? (its frame count below :attr:`confirmed`)
+        If so, restore its state through the ``on_reset`` hooks. Only where hooks are set."""
+        if not self.on_reset or self._probing:
+            return
+        self._probing = True
+        try:
+            board_count = self.read_counters()["frames_ok"]
+        finally:
+            self._probing = False
+        reset = board_count < self.confirmed
+        self.confirmed = board_count
+        if not reset:
+            return
+        self.stats.resets += 1
+        if self._restoring:
+            raise _ResetDuringRestore()
+        self._restore()
+
+    def _restore(self) -> None:
+        sent, received = self.stats.bytes_sent, self.stats.bytes_received
+        try:
+            for _ in range(RESTORES):
+                self._restoring = True
+                try:
+                    for hook in self.on_reset:
+                        hook()
+                    self.stats.restores += 1
+                    return
+                except _ResetDuringRestore:
+                    continue
+                finally:
+                    self._restoring = False
+            raise LinkError(f"{self.port}: the board reset {RESTORES} times while its state was "
+                            "being restored: is its power supply or cable failing?")
+        finally:
+            self.stats.restore_bytes += self.stats.bytes_sent - sent + self.stats.bytes_received - received
 
     # -- the commands ---------------------------------------------------------------------------
 
@@ -300,11 +361,14 @@ class LinkClient:
         self.stats.count(Command.LOAD_GENOME, self.stats.bytes_sent - sent, self.stats.bytes_received - received)
         if redo_from is None:
             return
+        self._check_reset()  # a reset loses the frames in flight: restore before the redo
         for index in range(redo_from, len(payloads)):
             if index > redo_from and index < redo_from + in_flight:
                 self.stats.resends += 1
                 self.stats.note("in flight behind a failed frame")
-            self.stats.requests -= int(index < redo_from + in_flight)  # counted again by request()
+            if index < redo_from + in_flight:  # sent before, sent again (counted again by request())
+                self.stats.requests -= 1
+                self.stats.bytes_resent += 1 + HEADER_BYTES + len(payloads[index]) + CRC_BYTES
             self.request(Command.LOAD_GENOME, payloads[index], reply_length=0)
 
     def _pipeline(self, payloads, window: int) -> tuple[int | None, int]:
@@ -337,6 +401,7 @@ class LinkClient:
         else:
             header, body = reply
             if header.tag == tag and header.status == Status.OK.value and not body:
+                self.confirmed += 1
                 return True
             name = Status(header.status).name if header.status in {s.value for s in Status} else hex(header.status)
             reason = f"pipelined reply {name}" + ("" if header.tag == tag else " (another tag)")
