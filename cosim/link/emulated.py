@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from cosim.boards.registry import register_backend
-from cosim.link.host import LinkClient, encode_frame, pack, unpack
+from cosim.link.host import LinkClient, crc16, encode_frame, pack, unpack
 from ga.motions import DEFAULT_DISTANCE_RULE
 from hdl.link_protocol import (
     COUNTERS_REPLY,
@@ -195,7 +195,7 @@ class EmulatedSystemBoard:
 
 def _reply_body(command: int, tag: int, status: Status) -> bytes:
     body = pack(FrameHeader, command=int(command), status=status.value, tag=int(tag), length=0)
-    return body + LINK_CRC.compute(body).to_bytes(CRC_BYTES, "big")
+    return body + crc16(body).to_bytes(CRC_BYTES, "big")
 
 
 class EmulatedLine:
@@ -228,16 +228,15 @@ class EmulatedLine:
                 return  # the rest may still come (or the inter-byte timeout, at the next read)
             body = bytes(rx[1:end])
             del rx[:end]
-            if LINK_CRC.compute(body) != LINK_CRC.residue():
+            if crc16(body) != LINK_CRC.residue():
                 self._tx += self.board.reject(header, Status.BAD_CRC)
             else:
                 self._tx += self.board.answer(header, body[HEADER_BYTES:HEADER_BYTES + header.length])
 
     def read(self, n: int) -> bytes:
         if len(self._tx) < n and len(self._rx) > 0:  # a frame stalled: the inter-byte timeout
-            if len(self._rx) >= 1 + HEADER_BYTES:
-                header = unpack(FrameHeader, bytes(self._rx[1:1 + HEADER_BYTES]))
-                self._tx += self.board.reject(header, Status.TRUNCATED)
+            known = bytes(self._rx[1:1 + HEADER_BYTES]).ljust(HEADER_BYTES, b"\0")  # the header so far
+            self._tx += self.board.reject(unpack(FrameHeader, known), Status.TRUNCATED)
             self._rx.clear()
         out = bytes(self._tx[:n])
         del self._tx[:n]

@@ -23,6 +23,8 @@ host's means the board restarted, and the host replays what the board held from 
 
 from __future__ import annotations
 
+import binascii
+import functools
 from dataclasses import dataclass, field
 
 from amaranth.lib import data
@@ -74,19 +76,32 @@ class NotLoaded(LinkError):
     """EVALUATE answered NOT_LOADED: the genome must be loaded again first."""
 
 
+@functools.cache
+def _layout(layout) -> data.Layout:
+    return data.Layout.cast(layout)
+
+
+@functools.cache
 def _layout_bytes(layout) -> int:
-    return (data.Layout.cast(layout).size + 7) // 8
+    return (_layout(layout).size + 7) // 8
 
 
 def pack(layout, **fields) -> bytes:
     """``fields`` as the little-endian bytes of ``layout`` (the gateware's view of them)."""
-    value = data.Layout.cast(layout).const(fields).as_value().value
+    value = _layout(layout).const(fields).as_value().value
     return value.to_bytes(_layout_bytes(layout), "little")
 
 
 def unpack(layout, payload: bytes):
     """The fields of ``layout`` from its little-endian bytes (a ``data.Const``)."""
-    return data.Const(data.Layout.cast(layout), int.from_bytes(payload[:_layout_bytes(layout)], "little"))
+    return data.Const(_layout(layout), int.from_bytes(payload[:_layout_bytes(layout)], "little"))
+
+
+def crc16(body: bytes) -> int:
+    """``LINK_CRC.compute(body)`` at C speed: CRC-16/IBM-3740 is the CCITT CRC of the standard
+    library's ``binascii.crc_hqx`` with the catalogue entry's initial value 0xFFFF (no reflection,
+    no final XOR; tests/test_link_faults.py checks the two agree). 0 over a frame with its CRC."""
+    return binascii.crc_hqx(body, 0xFFFF)
 
 
 def encode_frame(command: Command, payload: bytes = b"", *, tag: int = 0, status: Status = Status.OK) -> bytes:
@@ -96,7 +111,7 @@ def encode_frame(command: Command, payload: bytes = b"", *, tag: int = 0, status
     header = pack(FrameHeader, command=Command(command).value, status=Status(status).value,
                   tag=tag, length=len(payload))
     body = header + bytes(payload)
-    return bytes([SYNC]) + body + LINK_CRC.compute(body).to_bytes(CRC_BYTES, "big")
+    return bytes([SYNC]) + body + crc16(body).to_bytes(CRC_BYTES, "big")
 
 
 def genome_payload(rows) -> bytes:
@@ -191,7 +206,7 @@ class LinkClient:
         rest = self._read_exactly(header.length + CRC_BYTES)
         if rest is None:
             return "timeout"
-        if LINK_CRC.compute(header_bytes + rest) != LINK_CRC.residue():
+        if crc16(header_bytes + rest) != LINK_CRC.residue():
             return "bad reply CRC"
         return header, rest[:header.length]
 
@@ -212,7 +227,7 @@ class LinkClient:
                 self.stats.resends += 1
                 self.stats.note(last)
                 self.stream.reset_input_buffer()
-                self._check_reset()
+                self._check_reset(command)
             self._tag = (self._tag + 1) % 256
             frame = encode_frame(command, payload, tag=self._tag)
             self.stream.write(frame)
@@ -251,14 +266,21 @@ class LinkClient:
 
     # -- board resets ---------------------------------------------------------------------------
 
-    def _check_reset(self) -> None:
-        """After a failed try: did the board restart? (its frame count below :attr:`confirmed`)
-        If so, restore its state through the ``on_reset`` hooks. Only where hooks are set."""
+    def _check_reset(self, during: Command = Command.LOAD_GENOME) -> None:
+        """After a failed try of ``during``: did the board restart? (its frame count below
+        :attr:`confirmed`) If so, restore its state through the ``on_reset`` hooks. Only where
+        hooks are set; a board that answers neither is a dead line (LinkError)."""
         if not self.on_reset or self._probing:
             return
         self._probing = True
         try:
             board_count = self.read_counters()["frames_ok"]
+        except LinkError as exc:
+            if type(exc) is not LinkError:
+                raise
+            raise LinkError(f"{self.port}: the line went dead during {during.name}: no good reply to it nor "
+                            f"to READ_COUNTERS after {self.retries + 1} tries each; is the board connected, "
+                            "configured and running?") from None
         finally:
             self._probing = False
         reset = board_count < self.confirmed
