@@ -286,7 +286,8 @@ def link_summary(controller, evaluator) -> dict:
                      "bytes_received": stats.bytes_received, "requests": stats.requests,
                      "resends": stats.resends, "resend_reasons": dict(stats.reasons),
                      "bytes_resent": stats.bytes_resent, "resets_detected": stats.resets,
-                     "restores": stats.restores, "restore_bytes": stats.restore_bytes,
+                     "restores": stats.restores, "restore_restarts": stats.restore_restarts,
+                     "restore_bytes": stats.restore_bytes,
                      "faults_injected": injected_faults(board.client),
                      "by_command": {name: list(v) for name, v in sorted(stats.by_command.items())}}
         if controller.client is evaluator.client:
@@ -316,7 +317,7 @@ def link_lines(link: dict) -> list[str]:
                          + f"; detected {sum(figures['resend_reasons'].values())} failed tries, "
                          f"{figures['resets_detected']} board resets; recovered by {figures['resends']} "
                          f"resends ({figures['bytes_resent']:,} bytes) and {figures['restores']} restores "
-                         f"({figures['restore_bytes']:,} bytes)")
+                         f"({figures.get('restore_restarts', 0)} started again, {figures['restore_bytes']:,} bytes)")
     return lines
 
 
@@ -328,4 +329,5 @@ def fault_summary(link: dict) -> dict | None:
     return {role: {"injected": f["faults_injected"], "failed_tries": dict(f["resend_reasons"]),
                    "resets_detected": f["resets_detected"], "resends": f["resends"],
                    "bytes_resent": f["bytes_resent"], "restores": f["restores"],
+                   "restore_restarts": f.get("restore_restarts", 0),
                    "restore_bytes": f["restore_bytes"]} for role, f in found.items()}

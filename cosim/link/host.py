@@ -146,6 +146,7 @@ class LinkStats:
     bytes_resent: int = 0  # request bytes sent again (resends; not the restores)
     resets: int = 0  # board resets detected (its frame count went back)
     restores: int = 0  # restores of the board's state from the host's mirror
+    restore_restarts: int = 0  # restores started again: the board reset while one ran
     restore_bytes: int = 0  # bytes both ways of the restores
     reasons: dict = field(default_factory=dict)
     by_command: dict = field(default_factory=dict)
@@ -303,6 +304,7 @@ class LinkClient:
                     self.stats.restores += 1
                     return
                 except _ResetDuringRestore:
+                    self.stats.restore_restarts += 1
                     continue
                 finally:
                     self._restoring = False
