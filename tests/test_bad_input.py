@@ -66,6 +66,27 @@ def test_the_uart_line_variable_is_no_traceback():
     _one_error(proc.returncode, proc.stderr, "EHW_UART_LINE", "bogus", "hdl, cocotbext")
 
 
+def test_no_other_module_reads_the_environment():
+    """``base.environ`` is the one reader; elsewhere only what a child process inherits is passed
+    on (PYTHONPATH, PATH) or a command's settings saved and put back (``hdl_environment``)."""
+    import re
+
+    passed_on = {("cosim/cli/options.py", "saved = {k: os.environ.get(k) for k in values}"),
+                 ("cosim/boards/cocotb_run.py", 'os.environ.get("PYTHONPATH", "")'),
+                 ("cosim/boards/cocotb_run.py", 'os.environ["PATH"] = str(root / "bin") + os.pathsep + os.environ["PATH"]')}
+    found = []
+    for package in ("base", "ga", "sim_world", "hdl", "peers", "formal", "cosim", "benchmarks"):
+        for path in sorted((REPO_ROOT / package).rglob("*.py")):
+            rel = path.relative_to(REPO_ROOT).as_posix()
+            if rel == "base/environ.py":
+                continue
+            for line in path.read_text().splitlines():
+                reads = re.search(r"os\.environ\.get\(|os\.getenv\(|= .*os\.environ\[", line)
+                if reads and not any(rel == f and text in line for f, text in passed_on):
+                    found.append(f"{rel}: {line.strip()}")
+    assert found == []
+
+
 def test_a_blinding_past_the_last_target_is_refused(ehw):
     _one_error(*ehw("sim", *TINY, "--blind-bit", "3", "--blind-after-target", "100")[::2],
                "--blind-bit 3", "--blind-after-target 100", "1 targets")

@@ -62,6 +62,14 @@ class LinkLearningBoard(LinkModelBoard):
         client.clear()
         client.request(Command.SEED, pack(SEED_REQUEST, seed=int(seed) & 0xFFFFFFFF), reply_length=0)
         self._load(population)
+        client.on_reset.append(self.restore)
+
+    def restore(self) -> None:
+        """A board reset (``LinkClient.on_reset``) loses the engine's generators and population,
+        which the host does not mirror: the run stops with one error line, its checkpoint kept."""
+        raise LinkError(f"{self.client.port}: the learner board reset (its frame count went back); the "
+                        "learning engine's population and generators cannot be restored from the host: "
+                        "--resume continues the run from its last checkpoint")
 
     def _load(self, population) -> None:
         from ga.genome import validate_rows
