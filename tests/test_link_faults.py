@@ -219,6 +219,39 @@ def test_random_bytes_are_never_a_reply(stream_bytes):
         client.request(Command.MOTION, b"\x11", reply_length=1)
 
 
+class _EndlessStream:
+    """A line that never falls silent: ``pattern`` over and over (noise, or frames of other tags)."""
+
+    port = "endless"
+
+    def __init__(self, pattern: bytes):
+        self.pattern, self.at, self.read_bytes = pattern, 0, 0
+
+    def write(self, data):
+        return len(data)
+
+    def read(self, n):
+        out = bytes(self.pattern[(self.at + i) % len(self.pattern)] for i in range(n))
+        self.at += n
+        self.read_bytes += n
+        return out
+
+    def reset_input_buffer(self):
+        pass
+
+
+@settings(max_examples=60, deadline=5000)
+@given(noise=st.binary(min_size=1, max_size=64), late=st.booleans())
+def test_a_line_that_never_falls_silent_does_not_hang_the_host(noise, late):
+    """Endless noise, or endless good frames of another tag (a board stuck repeating a reply):
+    every try gives up after a bounded number of bytes, and the request ends in LinkError."""
+    pattern = encode_frame(Command.MOTION, b"\x02", tag=200) + noise if late else noise
+    stream = _EndlessStream(pattern)
+    with pytest.raises(LinkError):
+        LinkClient(stream, retries=3).request(Command.MOTION, b"\x11", reply_length=1)
+    assert stream.read_bytes < 4 * 8 * (262 + len(pattern)) + 4 * 600
+
+
 # -- whole lifetimes -----------------------------------------------------------------------------
 
 
@@ -266,3 +299,12 @@ def test_a_dead_line_stops_with_one_error_and_resumes(ehw, tmp_path):
 def test_line_fault_options_are_checked_first(ehw, tmp_path, args, words):
     _one_error(*ehw("sim", *args, "--targets", "1", "--out", "x")[::2], *words)
     assert not (tmp_path / "x").exists()
+
+
+def test_the_option_wins_over_the_environment(ehw, monkeypatch):
+    monkeypatch.setenv("EHW_LINE_FAULTS", "dead=40")
+    small = ["--backend", "emulated", "--arena", "empty", "--targets", "1", "--population", "4", "--quiet",
+             "--no-plots"]
+    _one_error(*ehw("sim", *small, "--out", "env")[::2], "line went dead")
+    status, _, err = ehw("sim", *small, "--out", "clean", "--line-faults", "")
+    assert status == 0, err

@@ -110,8 +110,8 @@ def hdl_environment(settings: dict):
               "WAVES": "1" if settings["waves"] else "0"}
     if settings["clock_hz"] is not None:  # else cosim.boards.hardware_time.measured_clock decides
         values["EHW_CLOCK_HZ"] = repr(settings["clock_hz"])
-    for key, name in (("port", "EHW_PORT"), ("port2", "EHW_PORT2"), ("baud", "EHW_BAUD"),
-                      ("line_faults", "EHW_LINE_FAULTS")):
+    values["EHW_LINE_FAULTS"] = settings.get("line_faults") or ""  # "": a clean line, whatever the caller's
+    for key, name in (("port", "EHW_PORT"), ("port2", "EHW_PORT2"), ("baud", "EHW_BAUD")):
         if settings.get(key) is not None:  # the link backends read them there (cosim.link.boards)
             values[name] = settings[key] if key != "baud" else repr(settings[key])
     saved = {k: os.environ.get(k) for k in values}

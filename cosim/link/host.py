@@ -60,6 +60,9 @@ from hdl.link_protocol import (
 RETRIES = 3  # resends of one request after an error reply or a timeout
 PIPELINE = 2  # LOAD_GENOME frames in flight (the board answers one while the next arrives)
 RETRY_STATUSES = (Status.BAD_CRC, Status.TRUNCATED)
+MAX_FRAME = 1 + HEADER_BYTES + 255 + CRC_BYTES  # the longest frame either way (262 bytes)
+NOISE_BYTES = 2 * MAX_FRAME  # bytes without SYNC before a try counts as failed: a line of noise
+LATE_REPLIES = 2 * PIPELINE + 2  # replies of other tags one try skips before it counts as failed
 RESTORES = 5  # restores of one board reset before LinkError (a reset during the restore starts it again)
 
 
@@ -194,12 +197,14 @@ class LinkClient:
 
     def _read_reply(self):
         """(header, payload) of the next frame, or a reason string: timeout / bad CRC."""
-        while True:  # skip to SYNC
+        for _ in range(NOISE_BYTES):  # skip to SYNC (a line that only brings noise: a failed try)
             first = self._read_exactly(1)
             if first is None:
                 return "timeout"
             if first[0] == SYNC:
                 break
+        else:
+            return f"noise: no SYNC in {NOISE_BYTES} bytes"
         header_bytes = self._read_exactly(HEADER_BYTES)
         if header_bytes is None:
             return "timeout"
@@ -234,7 +239,7 @@ class LinkClient:
             self.stream.write(frame)
             self.stats.bytes_sent += len(frame)
             self.stats.bytes_resent += len(frame) if attempt else 0
-            while True:
+            for _ in range(LATE_REPLIES + 1):
                 reply = self._read_reply()
                 if isinstance(reply, str):
                     last = reply
@@ -262,6 +267,8 @@ class LinkClient:
                                     f"expected {reply_length}")
                 self.confirmed += 1
                 return body
+            else:
+                last = f"{LATE_REPLIES + 1} replies of other tags"
         raise LinkError(f"{self.port}: no good reply to {command.name} after {self.retries + 1} "
                         f"tries (last: {last}); is the board connected, configured and running?")
 
