@@ -282,8 +282,9 @@ def test_every_motion_over_a_noisy_line_is_the_clean_ones(monkeypatch):
 
 
 def test_a_dead_line_stops_with_one_error_and_resumes(ehw, tmp_path):
-    assert ehw("sim", *LIFETIME, "--out", "ref")[0] == 0
-    status, _, err = ehw("sim", "--backend", "emulated", *LIFETIME, "--out", "dead", "--line-faults", "dead=9000")
+    short = ["--targets", "2", "--population", "20", "--quiet", "--no-plots"]
+    assert ehw("sim", *short, "--out", "ref")[0] == 0
+    status, _, err = ehw("sim", "--backend", "emulated", *short, "--out", "dead", "--line-faults", "dead=3000")
     _one_error(status, err, "line went dead", "READ_COUNTERS")
     assert (tmp_path / "dead/checkpoint.json").is_file() and not (tmp_path / "dead/summary.json").exists()
     status, _, err = ehw("sim", "--backend", "emulated", "--resume", "--out", "dead", "--line-faults", "",
