@@ -26,8 +26,8 @@ Each board call is a coroutine of ``hdl.system_top.SystemHost`` run in the simul
 
 from __future__ import annotations
 
-import os
 
+from base import environ
 from cosim.boards.amaranth_backend import BoardLog, HDLControllerBoard, HDLEvaluatorBoard
 from cosim.boards.registry import register_backend
 from ga.motions import DEFAULT_DISTANCE_RULE
@@ -51,10 +51,10 @@ class CocotbSystem:
 
         self.dut = dut
         if clock_inside is None:
-            clock_inside = os.environ.get(CLOCK_INSIDE_ENV, "0") not in ("", "0")
+            clock_inside = environ.read(CLOCK_INSIDE_ENV, False)
         self.clock_inside = clock_inside
         self.pins = CocotbPins(dut)
-        self.host = SystemHost(self.pins, p_max=p_max or int(os.environ.get(P_MAX_ENV, P_MAX)))
+        self.host = SystemHost(self.pins, p_max=p_max or environ.read(P_MAX_ENV, P_MAX))
 
     async def start(self) -> None:
         """Clock (unless the top has its own), synchronous reset, then the evaluator's RAM sweep

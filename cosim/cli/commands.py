@@ -50,7 +50,7 @@ def _online_reporting():
 SIM_DEST_OF = {field: flag.lstrip("-") for field, flag in OPTIONS.items()}
 SIM_RUN_OPTIONS = {"backend": str, "simulator": str | None, "hdl_sample": int | None,
                    "waves": bool | None, "clock_hz": float | None, "port": str | None,
-                   "port2": str | None, "baud": float | None}
+                   "port2": str | None, "baud": float | None, "line_faults": str | None}
 
 
 def sim_parser(p) -> None:
@@ -193,16 +193,19 @@ def cmd_sim(args, extras: dict, sub=None) -> int:
             run = make_run(config, args.backend, out, resume=args.resume, progress=progress)
             run.run()
             summary = write_results(run, out, plots=plots)
-            if args.backend == "serial":
+            if args.backend in ("serial", "emulated"):
                 from cosim.link.boards import write_link_summary
 
                 write_link_summary(run, out)
         run_dir.remove_stale()
         print(summary_table(summary))
         if args.backend in LINK_BACKENDS:  # link.json: what crossed the link
-            from cosim.link.boards import link_lines
+            from cosim.link.boards import fault_summary, link_lines
 
-            print("\n".join(link_lines(json.loads((out / "link.json").read_text()))))
+            link = json.loads((out / "link.json").read_text())
+            print("\n".join(link_lines(link)))
+            if fault_summary(link) is not None:  # the summary counts the line's faults too
+                atomic_write_json(out / "summary.json", {**summary, "line_faults": fault_summary(link)})
         figures = sorted(out.glob("*.png"))
         print(f"wrote {out / 'summary.json'}" + (f" and {len(figures)} figures" if figures else ""))
         report_at_end(args, out, plots)

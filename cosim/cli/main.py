@@ -1,6 +1,6 @@
 """``ehw``: the project's one command line (a console script, ``pyproject.toml``).
 
-    ehw sim       [--backend reference|amaranth|cocotb] [--seed 1] [--out DIR] [--resume] ...
+    ehw sim       [--backend reference|amaranth|cocotb|serial|uart|emulated] [--seed 1] [--out DIR] [--resume] ...
     ehw offline   [--seed 1] [--generations-cap G] [--workers W] [--out DIR] [--resume] ...
     ehw compare   [--seeds 5] [--first-seed 1] [--methods ...] [--jobs 2] [--out DIR] [--resume] ...
     ehw verilog   [--out build/verilog] [BLOCK ...]
@@ -44,6 +44,7 @@ import sys
 from pathlib import Path
 from typing import Sequence
 
+from base import environ
 from base.config_file import field_types
 from base.errors import ArgumentParser, UserError, run_main
 from base.options import PROG, HelpFormatter, add_common, apply_config_file, option_keys, resume_config, write_config
@@ -233,6 +234,7 @@ def _main(argv: Sequence[str] | None) -> int:
         # The module parses its own options (argparse cannot hand on "--x ..." as a remainder).
         return commands[argv[0]][1](argparse.Namespace(passed=argv[1:]), {})
     args = parser.parse_args(argv)
+    environ.check_all()  # every variable the project reads, before any work (base.environ)
     if args.command is None:
         parser.print_help(sys.stderr)
         return 2

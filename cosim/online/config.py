@@ -123,6 +123,10 @@ class OnlineConfig:
             check(self.blind_bit in range(6), "blind_bit", "an IR bit 0..5")
             check(isinstance(self.blind_after_target, int) and self.blind_after_target >= 1,
                   "blind_after_target", "a target >= 1")
+            if self.blind_after_target >= self.n_targets:  # the lifetime ends there: no blinding at all
+                raise ValueError(f"--blind-bit {self.blind_bit!r} --blind-after-target {self.blind_after_target!r}: "
+                                 f"the lifetime has {self.n_targets} targets, so the bit would never be "
+                                 f"blinded; choose a target in 1..{self.n_targets - 1}")
 
     def ga_config(self) -> GAConfig:
         return GAConfig(
