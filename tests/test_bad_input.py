@@ -11,10 +11,9 @@ import sys
 import time
 
 import pytest
-from conftest import REPO_ROOT
+from conftest import REPO_ROOT, one_error
 
 from base import environ
-from cosim.cli.main import main as ehw_main
 
 TINY = ["--arena", "empty", "--targets", "1", "--population", "20", "--quiet", "--no-plots"]
 # a value each variable cannot take
@@ -24,29 +23,6 @@ GARBAGE = {"EHW_SIM": "modelsim", "EHW_HDL_SAMPLE": "some", "WAVES": "maybe", "E
            "EHW_LINE_FAULTS": "flip=2", "EHW_FPGA_TOOLS": " build"}
 
 
-@pytest.fixture
-def ehw(tmp_path, monkeypatch, capsys):
-    monkeypatch.chdir(tmp_path)
-    for name in environ.VARIABLES:
-        monkeypatch.delenv(name, raising=False)
-
-    def run(*args):
-        capsys.readouterr()
-        status = ehw_main([str(a) for a in args])
-        out, err = capsys.readouterr()
-        return status, out, err
-
-    return run
-
-
-def _one_error(status, err, *words):
-    lines = err.strip().splitlines()
-    assert status == 2, err
-    assert len(lines) == 1 and lines[0].startswith("error: "), err
-    for word in words:
-        assert word in lines[0], (word, lines[0])
-
-
 def test_every_user_variable_has_a_garbage_case():
     assert set(GARBAGE) == {n for n, v in environ.VARIABLES.items() if not v.internal}
 
@@ -54,7 +30,7 @@ def test_every_user_variable_has_a_garbage_case():
 @pytest.mark.parametrize("name", sorted(GARBAGE))
 def test_a_bad_environment_variable_is_one_error_line(ehw, tmp_path, monkeypatch, name):
     monkeypatch.setenv(name, GARBAGE[name])
-    _one_error(*ehw("sim", *TINY, "--out", "run")[::2], name)
+    one_error(*ehw("sim", *TINY, "--out", "run")[::2], name)
     assert not (tmp_path / "run").exists()
 
 
@@ -63,7 +39,7 @@ def test_the_uart_line_variable_is_no_traceback():
     proc = subprocess.run([sys.executable, "-m", "cosim.cli.main", "sim", "--backend", "uart", "--targets", "1"],
                           cwd=REPO_ROOT, capture_output=True, text=True,
                           env={**os.environ, "EHW_UART_LINE": "bogus", "PYTHONPATH": str(REPO_ROOT)})
-    _one_error(proc.returncode, proc.stderr, "EHW_UART_LINE", "bogus", "hdl, cocotbext")
+    one_error(proc.returncode, proc.stderr, "EHW_UART_LINE", "bogus", "hdl, cocotbext")
 
 
 def test_no_other_module_reads_the_environment():
@@ -88,16 +64,16 @@ def test_no_other_module_reads_the_environment():
 
 
 def test_a_blinding_past_the_last_target_is_refused(ehw):
-    _one_error(*ehw("sim", *TINY, "--blind-bit", "3", "--blind-after-target", "100")[::2],
+    one_error(*ehw("sim", *TINY, "--blind-bit", "3", "--blind-after-target", "100")[::2],
                "--blind-bit 3", "--blind-after-target 100", "1 targets")
 
 
 def test_a_failed_start_leaves_the_out_folder_as_it_was(ehw, tmp_path):
     (tmp_path / "empty").mkdir()
-    _one_error(*ehw("sim", "--resume", "--out", "empty", *TINY)[::2], "checkpoint.json")
+    one_error(*ehw("sim", "--resume", "--out", "empty", *TINY)[::2], "checkpoint.json")
     assert list((tmp_path / "empty").iterdir()) == []
     # a fresh --out that cannot start (no board on the port): no folder at all
-    _one_error(*ehw("sim", *TINY, "--backend", "serial", "--port", str(tmp_path / "ttyNONE"), "--out", "new")[::2],
+    one_error(*ehw("sim", *TINY, "--backend", "serial", "--port", str(tmp_path / "ttyNONE"), "--out", "new")[::2],
                "ttyNONE")
     assert not (tmp_path / "new").exists()
     # a resumed run whose board is missing: its files as they were, byte for byte
@@ -107,7 +83,7 @@ def test_a_failed_start_leaves_the_out_folder_as_it_was(ehw, tmp_path):
         return {p.name: p.read_bytes() for p in (tmp_path / "run").iterdir() if p.name != ".lock"}
 
     before = files()
-    _one_error(*ehw("sim", "--resume", "--out", "run", "--backend", "serial", "--port",
+    one_error(*ehw("sim", "--resume", "--out", "run", "--backend", "serial", "--port",
                     str(tmp_path / "ttyNONE"), "--quiet")[::2], "ttyNONE")
     assert files() == before and (tmp_path / "run/.lock").exists()
 

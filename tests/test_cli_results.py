@@ -16,7 +16,8 @@ from pathlib import Path
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from test_cli import _arena_file, _one_error, ehw  # noqa: F401  (the fixture)
+from conftest import one_error
+from test_cli import _arena_file
 
 from base.runs import LATEST
 
@@ -78,21 +79,21 @@ def test_compare_help_shows_every_option_and_its_default(ehw):
 ])
 def test_compare_inputs_are_checked_before_any_work(ehw, tmp_path, args, words):
     t0 = time.perf_counter()
-    _one_error(*ehw("compare", *args)[::2], *words)
+    one_error(*ehw("compare", *args)[::2], *words)
     assert time.perf_counter() - t0 < 5
     assert not (tmp_path / "results").exists()
 
 
 def test_compare_files_are_checked_first(ehw, tmp_path):
     (tmp_path / "broken.json").write_text("{not json")
-    _one_error(*ehw("compare", *SMALL, "--arena", "broken.json")[::2], "broken.json", "not valid JSON")
-    _one_error(*ehw("compare", *SMALL, "--arena", _arena_file(tmp_path, ball_radius_mm=-1))[::2], "ball_radius_mm")
+    one_error(*ehw("compare", *SMALL, "--arena", "broken.json")[::2], "broken.json", "not valid JSON")
+    one_error(*ehw("compare", *SMALL, "--arena", _arena_file(tmp_path, ball_radius_mm=-1))[::2], "ball_radius_mm")
     (tmp_path / "a_file").write_text("x")
-    _one_error(*ehw("compare", *SMALL, "--cache", "a_file")[::2], "--cache", "a_file", "is a file")
-    _one_error(*ehw("compare", *SMALL, "--out", "a_file")[::2], "a_file", "is a file")
+    one_error(*ehw("compare", *SMALL, "--cache", "a_file")[::2], "--cache", "a_file", "is a file")
+    one_error(*ehw("compare", *SMALL, "--out", "a_file")[::2], "a_file", "is a file")
     (tmp_path / "half").mkdir()
     (tmp_path / "half/compare.json").write_text("[]")
-    _one_error(*ehw("compare", "--adaptation-only", "--blind-bit", "0", "--blind-after-target", "2",
+    one_error(*ehw("compare", "--adaptation-only", "--blind-bit", "0", "--blind-after-target", "2",
                     "--out", "half")[::2], "half/compare.json", "not a compare report")
     assert not (tmp_path / "results").exists()
 
@@ -108,7 +109,7 @@ def test_compare_files_are_checked_first(ehw, tmp_path):
 ])
 def test_compare_config_file_errors_name_the_key(ehw, tmp_path, text, words):
     (tmp_path / "bad.toml").write_text(text)
-    _one_error(*ehw("compare", "--config", "bad.toml", "--seeds", "1", "--jobs", "1", "--quiet")[::2], *words)
+    one_error(*ehw("compare", "--config", "bad.toml", "--seeds", "1", "--jobs", "1", "--quiet")[::2], *words)
     assert not (tmp_path / "results").exists()
 
 
@@ -128,7 +129,7 @@ def test_compare_runs_keep_both_and_rerun_from_their_config(ehw, tmp_path):
     assert (root / "cache").is_dir()
     before = (second / "compare.json").read_bytes()
     status, out, err = ehw("compare", *SMALL, "--out", second)
-    _one_error(status, err, "already holds a run", "--force")
+    one_error(status, err, "already holds a run", "--force")
     assert (second / "compare.json").read_bytes() == before
     # The run's config.toml and its compare.json re-run it (from the cache: the same table).
     for source in (second / "config.toml", second / "compare.json"):
@@ -143,12 +144,12 @@ def test_compare_resume_and_force(ehw, tmp_path):
     assert ehw("compare", *SMALL, "--out", "run")[0] == 0
     # --resume continues the comparison under its stored options; a flag that changes it is refused.
     assert ehw("compare", "--resume", "--out", "run", "--jobs", "2", "--quiet")[0] == 0
-    _one_error(*ehw("compare", "--resume", "--out", "run", "--seeds", "3")[::2], "--seeds 3", "stored 1")
+    one_error(*ehw("compare", "--resume", "--out", "run", "--seeds", "3")[::2], "--seeds 3", "stored 1")
     assert ehw("compare", *SMALL, "--methods", "baseline", "--out", "run", "--force")[0] == 0
     report = json.loads((tmp_path / "run/compare.json").read_text())
     assert set(report["per_seed"]) == {"baseline"}
     # --force replaces one comparison, never a tree of runs.
-    _one_error(*ehw("compare", *SMALL, "--out", ".", "--force")[::2], "holds other runs")
+    one_error(*ehw("compare", *SMALL, "--out", ".", "--force")[::2], "holds other runs")
     assert (tmp_path / "run/compare.json").exists()
 
 
@@ -164,7 +165,7 @@ def test_an_interrupted_comparison_resumes_and_a_refused_one_leaves_nothing(ehw,
 
     real_executor, real = cosim.compare.sweep.executor, cosim.compare.sweep.run_sweep
     monkeypatch.setattr(cosim.compare.sweep, "executor", unreachable)
-    _one_error(*ehw("compare", *SMALL, "--seeds", "2", "--cluster", "tcp://nowhere:1")[::2], "--cluster", "nowhere")
+    one_error(*ehw("compare", *SMALL, "--seeds", "2", "--cluster", "tcp://nowhere:1")[::2], "--cluster", "nowhere")
     assert _runs(root) == [done] and (root / LATEST).resolve() == done
     monkeypatch.setattr(cosim.compare.sweep, "executor", real_executor)
 
@@ -204,15 +205,15 @@ def test_baseline_runs_keep_both_and_out_is_refused(ehw, tmp_path):
     assert json.loads((first / "baseline.json").read_text())["noisy"][0]["seed"] == 0
     assert json.loads((second / "baseline.json").read_text())["noisy"] == []
     before = (second / "baseline.json").read_bytes()
-    _one_error(*ehw("baseline", "--arena", "empty", "--out", second)[::2], "already holds a run", "--force")
+    one_error(*ehw("baseline", "--arena", "empty", "--out", second)[::2], "already holds a run", "--force")
     assert (second / "baseline.json").read_bytes() == before
     # Its config.toml re-runs it; --force replaces it.
     assert ehw("baseline", "--config", first / "config.toml", "--out", "again")[0] == 0
     assert json.loads((tmp_path / "again/baseline.json").read_text())["noisy"] == \
         json.loads((first / "baseline.json").read_text())["noisy"]
     assert ehw("baseline", "--arena", "empty", "--seeds", "0", "--out", "again", "--force")[0] == 0
-    _one_error(*ehw("baseline", "--first-seed", "-1")[::2], "--first-seed", "-1")
-    _one_error(*ehw("baseline", "--out", "results", "--force")[::2], "holds other runs")
+    one_error(*ehw("baseline", "--first-seed", "-1")[::2], "--first-seed", "-1")
+    one_error(*ehw("baseline", "--out", "results", "--force")[::2], "holds other runs")
 
 
 def test_arena_runs_keep_both_and_out_is_refused(ehw, tmp_path):
@@ -225,7 +226,7 @@ def test_arena_runs_keep_both_and_out_is_refused(ehw, tmp_path):
     assert [p.name for p in runs[0].glob("*.png")] == ["arena_empty.png"]
     assert [p.name for p in runs[1].glob("*.png")] == ["arena_one_obstacle.png"]
     assert ehw("arena", "--arena", "empty", "--out", "pics")[0] == 0
-    _one_error(*ehw("arena", "--arena", "one_obstacle", "--out", "pics")[::2], "'pics'", "already holds a run")
+    one_error(*ehw("arena", "--arena", "one_obstacle", "--out", "pics")[::2], "'pics'", "already holds a run")
     assert ehw("arena", "--arena", "one_obstacle", "--out", "pics", "--force")[0] == 0
     assert [p.name for p in (tmp_path / "pics").glob("*.png")] == ["arena_one_obstacle.png"]
 
@@ -249,11 +250,11 @@ def test_bench_keeps_every_run_and_merges_into_results_bench_json(ehw, tmp_path,
     assert "a" not in json.loads((runs[1] / "bench.json").read_text())
     merged = json.loads((tmp_path / "results/bench.json").read_text())
     assert merged["a"] == 3 and merged["b"] == 2  # the newest figure of every module
-    _one_error(*ehw("bench", "bench_a", "--out", "mine")[::2], "'mine'", "already holds a run")
-    _one_error(*ehw("bench", "--out", "results/bench.json")[::2], "--out", "--figures")
-    _one_error(*ehw("bench", "nope")[::2], "nope")
+    one_error(*ehw("bench", "bench_a", "--out", "mine")[::2], "'mine'", "already holds a run")
+    one_error(*ehw("bench", "--out", "results/bench.json")[::2], "--out", "--figures")
+    one_error(*ehw("bench", "nope")[::2], "nope")
     (tmp_path / "list.json").write_text("[1]")
-    _one_error(*ehw("bench", "--figures", "list.json")[::2], "list.json", "no JSON object")
+    one_error(*ehw("bench", "--figures", "list.json")[::2], "list.json", "no JSON object")
 
 
 def test_two_merges_at_once_both_land(tmp_path):

@@ -8,12 +8,12 @@ import json
 
 import numpy as np
 import pytest
+from conftest import one_error
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from base.errors import UserError
-from cosim.cli.main import main as ehw_main
-from cosim.link.emulated import EmulatedLine, EmulatedSystemBoard
+from cosim.link.emulated import EmulatedLine
 from cosim.link.faults import FaultyLine, LineFaults, parse_faults
 from cosim.link.host import LinkClient, LinkError, crc16, encode_frame, pack
 from hdl.link_protocol import (
@@ -29,29 +29,6 @@ LIFETIME = ["--targets", "4", "--population", "20", "--quiet", "--no-plots"]
 FAULTS = "flip=1e-4,drop=1e-4,silence=1e-3,reset=3,seed=2"
 # what differs between a backend and the reference's summary by design (docs/host_link.md)
 NOT_COMPARED = {"backend", "wall_time_s", "board_cycles", "hardware", "line_faults"}
-
-
-@pytest.fixture
-def ehw(tmp_path, monkeypatch, capsys):
-    monkeypatch.chdir(tmp_path)
-    for name in ("EHW_LINE_FAULTS", "EHW_PORT", "EHW_BAUD", "EHW_UART_LINE"):
-        monkeypatch.delenv(name, raising=False)
-
-    def run(*args):
-        capsys.readouterr()
-        status = ehw_main([str(a) for a in args])
-        out, err = capsys.readouterr()
-        return status, out, err
-
-    return run
-
-
-def _one_error(status, err, *words):
-    lines = err.strip().splitlines()
-    assert status == 2, err
-    assert len(lines) == 1 and lines[0].startswith("error: "), err
-    for word in words:
-        assert word in lines[0], (word, lines[0])
 
 
 def _same_lifetime(a, b):
@@ -285,7 +262,7 @@ def test_a_dead_line_stops_with_one_error_and_resumes(ehw, tmp_path):
     short = ["--targets", "2", "--population", "20", "--quiet", "--no-plots"]
     assert ehw("sim", *short, "--out", "ref")[0] == 0
     status, _, err = ehw("sim", "--backend", "emulated", *short, "--out", "dead", "--line-faults", "dead=3000")
-    _one_error(status, err, "line went dead", "READ_COUNTERS")
+    one_error(status, err, "line went dead", "READ_COUNTERS")
     assert (tmp_path / "dead/checkpoint.json").is_file() and not (tmp_path / "dead/summary.json").exists()
     status, _, err = ehw("sim", "--backend", "emulated", "--resume", "--out", "dead", "--line-faults", "",
                          "--quiet", "--no-plots")
@@ -298,7 +275,7 @@ def test_a_dead_line_stops_with_one_error_and_resumes(ehw, tmp_path):
     (["--backend", "serial", "--port", "loop://", "--line-faults", "reset=1"], ["reset=1", "real board"]),
     (["--backend", "emulated", "--line-faults", "flip=7"], ["flip"])])
 def test_line_fault_options_are_checked_first(ehw, tmp_path, args, words):
-    _one_error(*ehw("sim", *args, "--targets", "1", "--out", "x")[::2], *words)
+    one_error(*ehw("sim", *args, "--targets", "1", "--out", "x")[::2], *words)
     assert not (tmp_path / "x").exists()
 
 
@@ -306,6 +283,6 @@ def test_the_option_wins_over_the_environment(ehw, monkeypatch):
     monkeypatch.setenv("EHW_LINE_FAULTS", "dead=40")
     small = ["--backend", "emulated", "--arena", "empty", "--targets", "1", "--population", "4", "--quiet",
              "--no-plots"]
-    _one_error(*ehw("sim", *small, "--out", "env")[::2], "line went dead")
+    one_error(*ehw("sim", *small, "--out", "env")[::2], "line went dead")
     status, _, err = ehw("sim", *small, "--out", "clean", "--line-faults", "")
     assert status == 0, err
