@@ -8,10 +8,12 @@ noise-free world (each leg from its own start pose, a leg time-out of ``max_leg_
 
 The search is a seeded local search started from the hand-written baseline
 (``sim_world.baseline``): change the motion of one visited state to another motion, and keep the
-change when it adds neither failed legs nor interactions (hill climbing with neutral moves), or,
-with ``temperature`` T0 > 0, by simulated annealing on cost = interactions + max_leg_steps x
-failed legs (a worse change of D is kept with probability exp(-D / T), T falling linearly from T0
-to 0 over the budget; the best table seen is returned). Scoring is exact and fast because
+change when it does not raise the cost (hill climbing with neutral moves), or, with
+``temperature`` T0 > 0, by simulated annealing (a change that raises the cost by D is kept with
+probability exp(-D / T), T falling linearly from T0 to 0 over the budget; the best table seen is
+returned). A leg's cost is its interactions when it reaches the target, else the time-out plus
+its final distance to the ball in steps (so a failing leg still tells which change brings the
+robot closer, as the distance term of the paper's fitness does). Scoring is exact and fast because
 the world is deterministic: a state's motion matters only to the legs that visit that state, so
 a change re-drives only those legs (the others keep their count). What it finds is an upper
 bound on the best such controller (a local search proves no optimum); the omniscient planner
@@ -25,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ga.motions import N_MOTIONS, N_STATES, REFLEX_TABLE
+from ga.motions import N_MOTIONS, N_STATES, REFLEX_TABLE, STEP_MM
 from sim_world.arena import Arena, Pose
 from sim_world.baseline import baseline_table
 from sim_world.course import DEFAULT_MAX_LEG_STEPS
@@ -38,21 +40,24 @@ class _Leg:
     reached: bool
     interactions: int
     visited: frozenset  # the states whose motion was executed on the leg
+    cost: float  # interactions when reached; else the time-out plus the distance left, in steps
 
 
 def drive_leg(world: World, table, start: Pose, max_leg_steps: int) -> _Leg:
     """One leg of ``table`` (256 motions) from ``start``, until the target, a crash or the time-out."""
     s = world.place(start)
     visited = set()
-    for n in range(1, max_leg_steps + 1):
+    n = 0
+    while n < max_leg_steps:
+        n += 1
         visited.add(s)
         out = world.step(int(table[s]))
-        if out.crashed:
-            return _Leg(False, n, frozenset(visited))
         if out.reached:
-            return _Leg(True, n, frozenset(visited))
+            return _Leg(True, n, frozenset(visited), float(n))
+        if out.crashed:
+            break
         s = out.state
-    return _Leg(False, max_leg_steps, frozenset(visited))
+    return _Leg(False, n, frozenset(visited), max_leg_steps + world.target_distance() / STEP_MM)
 
 
 @dataclass
@@ -95,9 +100,8 @@ def search_table(arena: Arena, seconds: float, rng: np.random.Generator, table=N
         raise ValueError(f"a table holds {N_STATES} motions, got shape {table.shape}")
     frozen = REFLEX_TABLE >= 0 if reflex else np.zeros(N_STATES, dtype=bool)
     legs = [drive_leg(world, table, p, max_leg_steps) for p in starts]
-    failed = sum(not leg.reached for leg in legs)
-    steps = sum(leg.interactions for leg in legs)
-    best = (failed, steps, table, [leg.interactions for leg in legs])
+    cost = sum(leg.cost for leg in legs)
+    best = (cost, table, list(legs))
     t0 = time.perf_counter()
     evaluations = accepted = 0
     interrupted = False
@@ -113,31 +117,30 @@ def search_table(arena: Arena, seconds: float, rng: np.random.Generator, table=N
             cand = table.copy()
             cand[state] = motion
             evaluations += 1
-            new_failed, new_steps, redone = failed, steps, {}
-            for i, leg in enumerate(legs):
-                if state not in leg.visited:
-                    continue
+            heat = temperature * max(0.0, 1.0 - (time.perf_counter() - t0) / seconds)
+            # the worst cost change still kept (for the annealing: drawn before the legs are driven)
+            room = -heat * np.log(1.0 - rng.random()) if heat > 0 else 0.0
+            affected = [i for i, leg in enumerate(legs) if state in leg.visited]
+            gain_left = sum(legs[i].cost - 1 for i in affected)  # a leg costs at least 1 motion
+            new_cost, redone = cost, {}
+            for i in affected:
                 redone[i] = drive_leg(world, cand, starts[i], max_leg_steps)
-                new_failed += (not redone[i].reached) - (not leg.reached)
-                new_steps += redone[i].interactions - leg.interactions
-                if new_failed > failed and not temperature:
-                    break
-            if temperature:
-                worse = (new_steps - steps) + max_leg_steps * (new_failed - failed)
-                heat = temperature * max(0.0, 1.0 - (time.perf_counter() - t0) / seconds)
-                keep = worse <= 0 or (heat > 0 and rng.random() < np.exp(-worse / heat))
-            else:
-                keep = (new_failed, new_steps) <= (failed, steps)
-            if keep:
-                table, failed, steps = cand, new_failed, new_steps
+                new_cost += redone[i].cost - legs[i].cost
+                gain_left -= legs[i].cost - 1
+                if new_cost - gain_left - cost > room + 1e-9:
+                    break  # even the best outcome of the legs left would not keep the change
+            if new_cost - cost <= room + 1e-9:
+                table, cost = cand, new_cost
                 for i, leg in redone.items():
                     legs[i] = leg
                 accepted += 1
-                if (failed, steps) < best[:2]:
-                    best = (failed, steps, table, [leg.interactions for leg in legs])
+                if cost < best[0] - 1e-9:
+                    best = (cost, table, list(legs))
                     if progress is not None:
-                        progress(time.perf_counter() - t0, failed, steps)
+                        progress(time.perf_counter() - t0, sum(not leg.reached for leg in legs),
+                                 sum(leg.interactions for leg in legs))
     except KeyboardInterrupt:
         interrupted = True
-    failed, steps, table, per_leg = best
-    return TableSearch(table, failed, steps, per_leg, evaluations, accepted, time.perf_counter() - t0, interrupted)
+    _, table, legs = best
+    return TableSearch(table, sum(not leg.reached for leg in legs), sum(leg.interactions for leg in legs),
+                       [leg.interactions for leg in legs], evaluations, accepted, time.perf_counter() - t0, interrupted)

@@ -55,6 +55,7 @@ from base.options import (
 )
 from base.runs import RunLock, open_run
 from cosim.cli.commands import SIM_DEST_OF, SIM_RUN_OPTIONS, cmd_offline, cmd_sim, offline_parser, sim_parser
+from cosim.cli.limit import cmd_limit, limit_parser
 from cosim.cli.options import RESULTS, resolve_hdl_settings
 from cosim.compare.options import COMPARE_ROOT
 
@@ -195,6 +196,7 @@ COMMANDS = {
     "verilog": (_verilog_parser, cmd_verilog, "the Verilog of the EHW blocks -> build/verilog/"),
     "arena": (_arena_parser, cmd_arena, "render arenas -> results/arena/<date>-<time>/arena_<name>.png"),
     "baseline": (_baseline_parser, cmd_baseline, "the hand-written reactive baseline through the 64 legs -> results/baseline/<date>-<time>-seeds<A>-<B>/"),
+    "limit": (limit_parser, cmd_limit, "the fewest interactions any controller could need (omniscient planner) -> results/limit/<date>-<time>/"),
 }
 _SUBPARSERS: dict[str, argparse.ArgumentParser] = {}
 
