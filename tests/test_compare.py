@@ -144,7 +144,7 @@ def test_online_options_are_typed_checked_and_reported():
 # -- the executors and the cache -----------------------------------------------------------------
 
 SMALL = ["--seeds", "2", "--methods", "baseline,q-learning", "--shaping", "shaped",
-         "--max-interactions", "800", "--jobs", "2"]
+         "--max-interactions", "800", "--jobs", "2", "--no-planner-limit"]
 
 
 def _figures(path):

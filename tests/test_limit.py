@@ -141,13 +141,13 @@ def test_ehw_limit_writes_the_tables(tmp_path, capsys):
 
     path = tmp_path / "tiny.json"
     path.write_text(json.dumps(tiny_arena([POST]).to_json()))
-    assert main(["limit", "--arena", str(path), "--cell", "10", "--refine", "--out", str(tmp_path / "run"),
+    assert main(["limit", "--arena", str(path), "--cell", "20", "--refine", "--out", str(tmp_path / "run"),
                  "--quiet"]) == 0
     report = json.loads((tmp_path / "run" / "limit.json").read_text())
     tiny = report["arenas"]["tiny"]
     assert tiny["total_interactions"] == 64 * 12
     assert [leg["interactions"] for leg in tiny["per_leg"]] == [12] * 64
-    assert tiny["refined"]["cell_mm"] == 5.0
+    assert tiny["refined"]["cell_mm"] == 10.0 and tiny["refined"]["change"] == 0
     assert (tmp_path / "run" / "limit_tiny.png").exists()
     assert "| tiny | 768 |" in capsys.readouterr().out
 
@@ -160,3 +160,32 @@ def test_ehw_limit_user_errors(argv, message, capsys, tmp_path):
     assert main(["limit", "--out", str(tmp_path / "run"), *argv]) == 2
     err = capsys.readouterr().err
     assert err.startswith("error:") and message in err and "Traceback" not in err
+
+
+def test_compare_shows_each_median_over_the_limit(tmp_path, monkeypatch):
+    # The limit of an arena file is planned once and then read from the comparison's cache; the
+    # table gets a column of median / limit and the plot a line at the limit.
+    from cosim.compare import limit as compare_limit
+    from cosim.compare.report import add_limit, build_report, markdown, write_plot
+    from cosim.compare.sweep import Cache
+
+    path = tmp_path / "tiny.json"
+    path.write_text(json.dumps(tiny_arena([POST]).to_json()))
+    cache = Cache(tmp_path / "cache")
+    first = compare_limit.course_limit(str(path), cache, cell_mm=10.0)
+    assert first["interactions"] == 64 * 12 and first["per_leg"] == [12] * 64
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("planned again: the cache was not used")
+
+    monkeypatch.setattr(compare_limit, "plan_course", refuse)
+    assert compare_limit.course_limit(str(path), cache, cell_mm=10.0) == first
+    lifetime = {"interactions": 1536, "targets_reached": 64, "crashes": 2,
+                "target_interactions": list(range(24, 1537, 24))}
+    report = add_limit(build_report({"baseline": {1: lifetime}}, "tiny", [1]), first)
+    assert report["methods"]["baseline"]["median_over_limit"] == 2.0
+    text = markdown(report)
+    assert "| reactive baseline | 1/1 | 1,536 | 2.0 |" in text
+    assert "| the limit (omniscient planner, noise-free) | yes | 768 | 1.0 |" in text
+    write_plot(report, tmp_path / "compare.png")
+    assert (tmp_path / "compare.png").stat().st_size > 10_000
