@@ -43,7 +43,7 @@ def limit_parser(p) -> None:
                    help="the longest leg searched (and the reactive controller's leg time-out)")
     p.add_argument("--reactive", type=float, default=0.0, metavar="SECONDS",
                    help="also search this long per arena for the best fixed 256-state controller")
-    p.add_argument("--temperature", type=float, default=30.0,
+    p.add_argument("--temperature", type=float, default=5.0,
                    help="the reactive search's starting annealing temperature (0: hill climbing)")
     p.add_argument("--seed", type=int, default=1, help="the reactive search's seed")
     add_common(p, seed=False, resume=False,
