@@ -214,10 +214,9 @@ def write_plot(report: dict, path: Path) -> Path:
             (f", {ratio:.1f}x the limit)" if ratio is not None else ")")
         ax.plot(grid, np.median(ys, axis=0), color=colour, linestyle=style, label=label, linewidth=1.6)
     limit = report.get("limit")
-    if limit:
-        ax.axvline(limit["interactions"], color="tab:red", linestyle="-.", linewidth=1)
-        ax.text(limit["interactions"], N_TARGETS * 0.55, f" the limit\n {limit['interactions']:,}", fontsize=7,
-                va="bottom", color="tab:red")
+    if limit:  # the planner's targets against its interactions: below it no controller can be
+        ax.plot(grid, _curve(np.cumsum(limit["per_leg"]).tolist(), grid, limit["interactions"]), color="tab:red",
+                linestyle="-.", linewidth=1.2, label=f"the limit (omniscient planner, {limit['interactions']:,})")
     ax.axvline(PAPER["online"]["interactions"], color="k", linestyle=":", linewidth=1)
     ax.text(PAPER["online"]["interactions"], 1, " paper on-line\n 12,280", fontsize=7, va="bottom")
     ax.set_xscale("log")
