@@ -46,6 +46,8 @@ from sim_world.course import DEFAULT_MAX_LEG_STEPS, Course
 from sim_world.geometry import edges
 from sim_world.world import BUMPER_SAMPLE_MM, World
 
+# Bumped whenever a change of the search can change a count (caches of limits key on it).
+PLANNER_VERSION = 2
 N_HEADINGS = round(360.0 / TURN_DEG)  # 16: every heading a leg can take
 DEFAULT_CELL_MM = 5.0  # the position cell of the search (docs/limit.md: 2.5 mm changes the total by < 1 %)
 MIN_CELL_MM = 1.0
@@ -270,7 +272,9 @@ def plan_leg(arena: Arena, start: Pose, cell_mm: float = DEFAULT_CELL_MM,
         k1 = next_k[kk, motion]
         g1 = np.repeat(g, N_MOTIONS)
         key = cells(x1, y1, k1)
-        keep = (g1 <= max_steps) & (g1 < best_g[key])
+        # a pose in the target disc ends the leg: it needs no cell of its own
+        at_target = (x1 - bx) ** 2 + (y1 - by) ** 2 <= reach2
+        keep = (g1 <= max_steps) & ((g1 < best_g[key]) | at_target)
         test = keep & moves[motion] & (nodes.clear[parent] <= far)
         if test.any():
             rows = np.flatnonzero(test)
@@ -278,7 +282,7 @@ def plan_leg(arena: Arena, start: Pose, cell_mm: float = DEFAULT_CELL_MM,
         rows = np.flatnonzero(keep)
         if not len(rows):
             continue
-        reached = (x1[rows] - bx) ** 2 + (y1[rows] - by) ** 2 <= reach2
+        reached = at_target[rows]
         if reached.any():
             hits = rows[reached]
             best = hits[np.argmin(g1[hits])]

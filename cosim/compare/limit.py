@@ -13,15 +13,16 @@ import json
 from cosim.compare.sweep import Cache
 from sim_world.arena import load_arena
 from sim_world.course import DEFAULT_MAX_LEG_STEPS
-from sim_world.limit import DEFAULT_CELL_MM, HEURISTICS, plan_course
+from sim_world.limit import DEFAULT_CELL_MM, HEURISTICS, PLANNER_VERSION, plan_course
 
 
 def limit_task(arena: str, cell_mm: float = DEFAULT_CELL_MM) -> dict:
-    """The cache key of an arena's limit: its file's content and the planner's settings."""
+    """The cache key of an arena's limit: its file's content, the planner's settings and version."""
     data = json.dumps(load_arena(arena).to_json(), sort_keys=True)
     return {"method": "limit", "seed": 0,
             "config": {"arena": arena, "arena_sha256": hashlib.sha256(data.encode()).hexdigest()[:16],
-                       "cell_mm": cell_mm, "heuristic": HEURISTICS[0], "max_leg_steps": DEFAULT_MAX_LEG_STEPS}}
+                       "cell_mm": cell_mm, "heuristic": HEURISTICS[0], "max_leg_steps": DEFAULT_MAX_LEG_STEPS,
+                       "planner_version": PLANNER_VERSION}}
 
 
 def course_limit(arena: str, cache: Cache, cell_mm: float = DEFAULT_CELL_MM) -> dict:
