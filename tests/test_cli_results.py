@@ -23,7 +23,7 @@ from base.runs import LATEST
 
 # A comparison of a second or two: the baseline on one seed, Q-learning capped at 200 interactions.
 SMALL = ["--seeds", "1", "--methods", "baseline,q-learning", "--shaping", "shaped",
-         "--max-interactions", "200", "--jobs", "1", "--quiet"]
+         "--max-interactions", "200", "--jobs", "1", "--quiet", "--no-planner-limit"]
 
 
 def _runs(root: Path) -> list[Path]:

@@ -50,6 +50,7 @@ from base.errors import ArgumentParser, UserError, run_main
 from base.options import PROG, HelpFormatter, add_common, apply_config_file, option_keys, resume_config, write_config
 from base.runs import RunLock, open_run
 from cosim.cli.commands import SIM_DEST_OF, SIM_RUN_OPTIONS, cmd_offline, cmd_sim, offline_parser, sim_parser
+from cosim.cli.limit import cmd_limit, limit_parser
 from cosim.cli.options import RESULTS
 from cosim.cli.report import add_report_flag, cmd_replay, cmd_report, replay_parser, report_at_end, report_parser
 from cosim.compare.options import COMPARE_ROOT
@@ -199,6 +200,7 @@ COMMANDS = {
     "baseline": (_baseline_parser, cmd_baseline, "the hand-written reactive baseline through the 64 legs -> results/baseline/<date>-<time>-seeds<A>-<B>/"),
     "replay": (replay_parser, cmd_replay, "a lifetime as a video (the arena, the robot, its IR bits, trail, crashes, targets, phases) -> RUN_DIR/replay.mp4"),
     "report": (report_parser, cmd_report, "one self-contained report.html of a run folder (summary, replay, curves, world model, controller, config)"),
+    "limit": (limit_parser, cmd_limit, "the fewest interactions any controller could need (omniscient planner) -> results/limit/<date>-<time>/"),
 }
 _SUBPARSERS: dict[str, argparse.ArgumentParser] = {}
 

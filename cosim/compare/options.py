@@ -57,6 +57,9 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
                    help="adaptation (paper 5.2): blind IR bit B (0..5) of the on-line run ...")
     p.add_argument("--blind-after-target", type=int, default=None, metavar="T",
                    help="... after target T, and count the interactions of the next 8 targets")
+    p.add_argument("--planner-limit", action=argparse.BooleanOptionalAction, default=True,
+                   help="plan the arena's limit (the omniscient planner of 'ehw limit', cached) and show every "
+                        "method's median as a multiple of it")
     p.add_argument("--jobs", type=int, default=2, metavar="J", help="worker processes")
     p.add_argument("--cluster", default=None, metavar="local|ADDRESS",
                    help="run the lifetimes on Dask: 'local' starts a LocalCluster of --jobs workers on "

@@ -72,6 +72,7 @@ from cosim.compare.report import (  # noqa: F401  (re-exported: the names of cos
     SHAPINGS,
     TABULAR,
     _seed_text,
+    add_limit,
     build_report,
     display_name,
     markdown,
@@ -337,6 +338,10 @@ def _compare(args, folder: Path) -> dict:
                 if s in results.get("offline", {}) and path.exists():
                     results["offline"][s]["best_genome"] = json.loads(path.read_text()).get("best_genome")
     report = build_report(results, args.arena, seeds)
+    if getattr(args, "planner_limit", False):
+        from cosim.compare.limit import course_limit
+
+        add_limit(report, course_limit(args.arena, cache))
     report["online_distance_rule"] = args.distance
     report["online_options"] = online
     from peers.deep import TUNED as DEEP_TUNED
