@@ -50,8 +50,8 @@ from base.config_file import field_types
 from base.errors import ArgumentParser, UserError, run_main
 from base.options import PROG, HelpFormatter, add_common, apply_config_file, option_keys, resume_config, write_config
 from base.runs import RunLock, open_run
-from cosim.cli.gatesim import cmd_gatesim, gatesim_parser
 from cosim.cli.commands import SIM_DEST_OF, SIM_RUN_OPTIONS, cmd_offline, cmd_sim, offline_parser, sim_parser
+from cosim.cli.gatesim import cmd_gatesim, gatesim_parser
 from cosim.cli.limit import cmd_limit, limit_parser
 from cosim.cli.options import RESULTS
 from cosim.cli.report import add_report_flag, cmd_replay, cmd_report, replay_parser, report_at_end, report_parser
