@@ -16,6 +16,7 @@ from cosim.online.failures import Cycles, LegTimeout, NoProgress, Reentries, Rep
 from ga.evolution import GAConfig
 from ga.hardware_ga import LEARNER_LANES
 from ga.motions import DISTANCE_RULES
+from sim_world.world import CAMERA_RANGE_SD, DEFAULT_NOISE, Noise
 
 LOOP_BLAMES = ("cycle", "leg")  # OnlineConfig.loop_blame (docs/online.md, round 8)
 
@@ -35,6 +36,9 @@ class OnlineConfig:
     arena: str = "default"
     n_targets: int = 64
     noise: bool = True  # the "real" world: sim_world.world.DEFAULT_NOISE
+    # the camera's range estimate in that world, r = true (1 + e), e ~ N(0, range_noise) (SPEC
+    # section 4): all the host learns progress towards the ball from (not the exact distance)
+    range_noise: float = CAMERA_RANGE_SD
     reflex: bool = True
     # GA (SPEC section 7: population 500, tournament 20, elitism, about 10 generations a phase)
     population: int = 500
@@ -103,6 +107,9 @@ class OnlineConfig:
         value = self.loop_radius_mm
         check(isinstance(value, (int, float)) and math.isfinite(value) and value >= 0, "loop_radius_mm",
               "a finite distance >= 0")
+        value = self.range_noise
+        check(isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+              and value >= 0, "range_noise", "a finite relative error >= 0")
         value = self.progress_weight
         check(isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
               and value >= 0, "progress_weight", "a finite weight >= 0")
@@ -123,6 +130,10 @@ class OnlineConfig:
             check(self.blind_bit in range(6), "blind_bit", "an IR bit 0..5")
             check(isinstance(self.blind_after_target, int) and self.blind_after_target >= 1,
                   "blind_after_target", "a target >= 1")
+
+    def world_noise(self) -> Noise | None:
+        """The world's noise: DEFAULT_NOISE with the camera's ``range_noise``; None without ``noise``."""
+        return dataclasses.replace(DEFAULT_NOISE, range_sd=float(self.range_noise)) if self.noise else None
 
     def ga_config(self) -> GAConfig:
         return GAConfig(
