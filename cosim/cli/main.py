@@ -56,6 +56,7 @@ from base.options import (
 from base.runs import RunLock, open_run
 from cosim.cli.commands import SIM_DEST_OF, SIM_RUN_OPTIONS, cmd_offline, cmd_sim, offline_parser, sim_parser
 from cosim.cli.options import RESULTS, resolve_hdl_settings
+from cosim.cli.tune import cmd_tune, tune_parser
 from cosim.compare.options import COMPARE_ROOT
 
 # -- the other subcommands ------------------------------------------------------------------------
@@ -195,6 +196,7 @@ COMMANDS = {
     "verilog": (_verilog_parser, cmd_verilog, "the Verilog of the EHW blocks -> build/verilog/"),
     "arena": (_arena_parser, cmd_arena, "render arenas -> results/arena/<date>-<time>/arena_<name>.png"),
     "baseline": (_baseline_parser, cmd_baseline, "the hand-written reactive baseline through the 64 legs -> results/baseline/<date>-<time>-seeds<A>-<B>/"),
+    "tune": (tune_parser, cmd_tune, "equal-effort tuning of one learning method (Optuna TPE) -> results/tune/<method>[-<shaping>].db/.json"),
 }
 _SUBPARSERS: dict[str, argparse.ArgumentParser] = {}
 

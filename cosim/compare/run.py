@@ -186,8 +186,10 @@ def make_tasks(methods, seeds, *, arena: str, out: str, shapings=SHAPINGS, onlin
                resume: bool = False) -> list[dict]:
     """The sweep's tasks: one per (row, seed); ``config`` holds what determines the result."""
     from peers.lifetime import MAX_INTERACTIONS
+    from sim_world.world import DEFAULT_NOISE
 
     cap = max_interactions or MAX_INTERACTIONS
+    sensing = {"range_sd": DEFAULT_NOISE.range_sd}  # the camera range the shaped peers learn from
     tasks = []
     for m in methods:
         if m == "online":
@@ -202,13 +204,13 @@ def make_tasks(methods, seeds, *, arena: str, out: str, shapings=SHAPINGS, onlin
             from peers.tabular import tuned_config
 
             rows = [(f"{m}/{sh}", "tabular", {"arena": arena, "shaping": sh, "max_interactions": cap,
-                                              "learner": dataclasses.asdict(tuned_config(m, sh))})
+                                              "learner": dataclasses.asdict(tuned_config(m, sh)), **sensing})
                     for sh in shapings]
         elif m in DEEP:
             from peers.deep import tuned_hyper
 
             rows = [(f"{m}/{sh}", "deep", {"arena": arena, "shaping": sh, "max_interactions": cap,
-                                           "hyper": tuned_hyper(m, sh)}) for sh in shapings]
+                                           "hyper": tuned_hyper(m, sh), **sensing}) for sh in shapings]
         else:
             raise ValueError(f"unknown method {m!r}; choose from {', '.join(METHODS)}")
         for row, kind, config in rows:
