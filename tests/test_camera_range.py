@@ -132,4 +132,4 @@ def test_the_detectors_judge_the_approach_on_the_smoothed_range():
     assert closer[id(smooth)] == [True, True, False, True, False]
     assert smooth.closest == pytest.approx(2500.0 / 3)
     smooth.step(0x41, 0, 0x41, False, True, 150.0)  # a target: a new leg, the readings forgotten
-    assert list(smooth.ranges) == [] and smooth.closest == 150.0
+    assert list(smooth.ranges) == [] and smooth.closest == pytest.approx((800.0 + 750.0 + 150.0) / 3)
