@@ -116,20 +116,3 @@ def test_the_gym_env_rewards_progress_by_the_range():
         _, reward, _, _, info = env.step(a)
         if info["targets"] == 0 and reward > -1:
             assert reward == pytest.approx(PROGRESS_SCALE * (before - info["range_mm"]) / 1000 - STEP_COST)
-
-
-def test_the_detectors_judge_the_approach_on_the_smoothed_range():
-    from cosim.online.failures import Track
-
-    plain, smooth = Track(maxlen=64), Track(maxlen=64, smoothing=3)
-    closer = {id(plain): [], id(smooth): []}
-    for r in (1000.0, 700.0, 1000.0, 800.0, 750.0):  # one lucky low reading at the second step
-        for track in (plain, smooth):
-            track.step(0x41, 0, 0x41, False, False, r)
-            closer[id(track)].append(track.closer)
-    assert closer[id(plain)] == [True, True, False, False, False]  # 700 stays the one to beat
-    # the means: 1000, 850, 900, 833.3, 850
-    assert closer[id(smooth)] == [True, True, False, True, False]
-    assert smooth.closest == pytest.approx(2500.0 / 3)
-    smooth.step(0x41, 0, 0x41, False, True, 150.0)  # a target: a new leg, the readings forgotten
-    assert list(smooth.ranges) == [] and smooth.closest == pytest.approx((800.0 + 750.0 + 150.0) / 3)

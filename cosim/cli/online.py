@@ -47,9 +47,6 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
     p.add_argument("--range-noise", type=float, default=d.range_noise, metavar="SD",
                    help="relative error of the camera's range estimate, all the robot learns "
                         "progress from (SPEC section 4; with --noise)")
-    p.add_argument("--range-smoothing", type=int, default=d.range_smoothing, metavar="K",
-                   help="the failure detectors judge a new closest approach on the mean of the "
-                        "last K range readings of the leg (1: each reading alone)")
     p.add_argument("--reflex", action=argparse.BooleanOptionalAction, default=d.reflex,
                    help="the reflex in free space (SPEC section 6)")
     p.add_argument("--population", type=int, default=d.population)
@@ -111,8 +108,7 @@ def config_from_args(args) -> OnlineConfig:
         raise ValueError("--progress-weight needs --fail-rates (the deficit rides on the rate codes)")
     return OnlineConfig(
         seed=args.seed, arena=args.arena, n_targets=args.targets + args.continue_past_64,
-        noise=args.noise, range_noise=args.range_noise,
-        range_smoothing=args.range_smoothing, reflex=args.reflex, population=args.population,
+        noise=args.noise, range_noise=args.range_noise, reflex=args.reflex, population=args.population,
         tournament=args.tournament, elitism=args.elitism, generations_per_phase=args.generations_per_phase,
         crossover_rate=args.crossover_rate, literal_rate=args.literal_rate, output_rate=args.output_rate,
         switch_rate=args.switch_rate, replace_rate=args.replace_rate,

@@ -5,7 +5,7 @@
 * **Search**: Optuna's TPE sampler, seeded (``--sampler-seed``), over the method's knobs
   (:data:`SPACES`: the tabular learners' step size, discount, exploration, planning and bonus;
   DQN's and PPO's learning rate, discount and exploration; the on-line method's GA rates,
-  generations per phase, progress weight, failure detectors and range smoothing). The same ``--trials`` and the
+  generations per phase, progress weight and failure detectors). The same ``--trials`` and the
   same ``--seeds`` for every method is the equal effort.
 * **Objective**: the median over the tuning seeds of the interactions to 64 targets; a lifetime
   that stops at the cap (100,000) short of 64 counts at the cap.
@@ -71,8 +71,7 @@ def _online_space(trial) -> dict:
             "switch_rate": rate("switch_rate", 2e-3, 5e-2), "replace_rate": rate("replace_rate", 1e-3, 2e-2),
             "progress_weight": trial.suggest_float("progress_weight", 0.0, 6.0),
             "loop_window": trial.suggest_int("loop_window", 40, 200),
-            "max_leg_steps": trial.suggest_int("max_leg_steps", 200, 1000),
-            "range_smoothing": trial.suggest_int("range_smoothing", 1, 8)}
+            "max_leg_steps": trial.suggest_int("max_leg_steps", 200, 1000)}
 
 
 SPACES = {"online": _online_space, **{m: _tabular_space(m) for m in TABULAR}, "dqn": _dqn_space, "ppo": _ppo_space}

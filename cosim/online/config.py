@@ -39,9 +39,6 @@ class OnlineConfig:
     # the camera's range estimate in that world, r = true (1 + e), e ~ N(0, range_noise) (SPEC
     # section 4): all the host learns progress towards the ball from (not the exact distance)
     range_noise: float = CAMERA_RANGE_SD
-    # the failure detectors judge a new closest approach on the mean of the leg's last this many
-    # range readings (cosim.online.failures.Track); 1: each reading alone
-    range_smoothing: int = 1
     reflex: bool = True
     # GA (SPEC section 7: population 500, tournament 20, elitism, about 10 generations a phase)
     population: int = 500
@@ -96,11 +93,10 @@ class OnlineConfig:
 
         for field in ("seed", "n_targets", "population", "tournament", "elitism", "generations_per_phase",
                       "max_leg_steps", "loop_window", "loop_reentries", "loop_repeats", "loop_cycles",
-                      "max_interactions", "range_smoothing"):
+                      "max_interactions"):
             value = getattr(self, field)
             check(isinstance(value, (int, np.integer)) and not isinstance(value, bool), field, "an integer")
-        for field in ("n_targets", "population", "tournament", "generations_per_phase", "max_leg_steps",
-                      "range_smoothing"):
+        for field in ("n_targets", "population", "tournament", "generations_per_phase", "max_leg_steps"):
             check(getattr(self, field) >= 1, field, ">= 1")
         for field in ("seed", "loop_window", "loop_reentries", "loop_repeats", "loop_cycles", "max_interactions"):
             check(getattr(self, field) >= 0, field, ">= 0")

@@ -42,17 +42,14 @@ class Track:
       dead-reckoned from the start of the lifetime (crashed motions do not move it);
     - ``state``: the state the robot is in now;
     - ``closest`` / ``since_closer``: the closest approach to the ball since the phase began or
-      the last target, and the steps since it; ``closer``: the last step made a new one. The
-      approach is judged on the camera's range estimate (SPEC section 4, never the exact
-      distance), averaged over the last ``smoothing`` readings of the leg: the minimum of single
-      noisy readings is an outlier the robot then has to beat by far;
+      the last target, and the steps since it; ``closer``: the last step made a new one (judged
+      on the camera's range estimate, SPEC section 4, never the exact distance);
     - ``entered``: the last step, not a new closest approach, entered an obstacle state from
       another state.
     """
 
-    def __init__(self, maxlen: int, smoothing: int = 1):
+    def __init__(self, maxlen: int):
         self.pairs: deque[tuple[int, int]] = deque(maxlen=maxlen)
-        self.ranges: deque[float] = deque(maxlen=smoothing)  # the leg's last range readings
         self.places: deque[tuple[float, float]] = deque(maxlen=maxlen)
         self.odometry = [0.0, 0.0, 0.0]  # x, y (mm), heading (rad)
         self.state = 0
@@ -69,8 +66,6 @@ class Track:
              range_mm: float) -> None:
         """One interaction: ``motion`` in ``state`` led to ``next_state`` (after a target: the
         state at the relocation position), where the camera read ``range_mm`` to the ball."""
-        self.ranges.append(range_mm)
-        estimate = sum(self.ranges) / len(self.ranges)
         self.pairs.append((state, motion))
         if not crashed:
             x, y, heading = self.odometry
@@ -83,11 +78,10 @@ class Track:
         if reached:  # a new leg
             self.pairs.clear()
             self.places.clear()
-            self.ranges.clear()
             self.new_phase()
-        self.closer = estimate < self.closest - 1e-9
+        self.closer = range_mm < self.closest - 1e-9
         if self.closer:
-            self.closest, self.since_closer = estimate, 0
+            self.closest, self.since_closer = range_mm, 0
         else:
             self.since_closer += 1
         self.entered = not self.closer and next_state != state and bool(next_state & OBSTACLE_MASK)

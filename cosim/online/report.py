@@ -59,8 +59,7 @@ def learnt_from(cfg) -> dict:
     noise = cfg.world_noise()
     return {"state": "8 sensor bits", "events": ["bumper", "target reached"],
             "progress": "camera range", "range_sd": 0.0 if noise is None else noise.range_sd,
-            "range_step_mm": CAMERA_RANGE_STEP_MM, "range_smoothing": cfg.range_smoothing,
-            "exact_distance": "figures only"}
+            "range_step_mm": CAMERA_RANGE_STEP_MM, "exact_distance": "figures only"}
 
 
 def interaction_breakdown(phases: list[dict], target_log: list[dict], interactions: int,

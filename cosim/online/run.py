@@ -91,7 +91,7 @@ class OnlineRun:
             controller.set_reflex(config.reflex)
         self.detectors = config.detectors()
         self.timeout = self.detectors[0]
-        self.track = Track(maxlen=max(config.loop_window, 64), smoothing=config.range_smoothing)
+        self.track = Track(maxlen=max(config.loop_window, 64))
         self.marks = FailureMarks(mirror=config.rate_mirror, progress=config.progress_weight) if config.fail_rates else None
         # lifetime counters (rebuilt by replay on resume)
         self.motions: list[int] = []  # every motion executed, in order (the replay log)
