@@ -78,8 +78,9 @@ class EHWTrackingEnv(gym.Env):
         self._ended: tuple | None = None  # (obs, terminated, truncated) once the episode ended
         self._warned_after_end = False
 
-    def _info(self) -> dict:
+    def _info(self, crashed: bool = False) -> dict:
         return {
+            "crashed": crashed,  # the bumper hit something in this step (the pose was restored)
             "pose": self.world.pose,
             "targets": self._targets,
             "leg_steps": self._leg_steps,
@@ -140,7 +141,7 @@ class EHWTrackingEnv(gym.Env):
         obs = int(self.world.state())
         if terminated or truncated:
             self._ended = (obs, terminated, truncated)
-        return obs, float(reward), terminated, truncated, self._info()
+        return obs, float(reward), terminated, truncated, self._info(out.crashed)
 
     def render(self):
         if self.render_mode != "rgb_array":

@@ -163,21 +163,27 @@ def test_lifetime_env_passes_both_checkers():
 
 
 def test_lifetime_env_applies_the_reflex_and_unshapes():
-    _need_sb3()
-    from peers.deep import lifetime_env
+    from peers.deep import lifetime_env  # the wrappers need gymnasium only
 
     shaped, unshaped = lifetime_env(2, "shaped"), lifetime_env(2, "unshaped")
     obs_s, _ = shaped.reset()
     obs_u, _ = unshaped.reset()
     assert obs_s == obs_u
     rng = np.random.default_rng(0)
-    for _ in range(300):
+    crashes = 0
+    for _ in range(2000):
         a = int(rng.integers(8))
         obs, r_s, *_ = shaped.step(a)
-        obs2, r_u, *_ = unshaped.step(a)
+        before = unshaped.unwrapped.world.crashes
+        obs2, r_u, _, _, info = unshaped.step(a)
+        crashed = unshaped.unwrapped.world.crashes > before
+        crashes += crashed
         assert obs == obs2  # same world, same noise: the reward alone differs
-        assert r_u in (pytest.approx(-0.01), pytest.approx(10 - 0.01), pytest.approx(-5 - 0.01))
-    assert shaped.steps == 300
+        assert info["crashed"] == crashed
+        assert r_u == pytest.approx(-5.01 if crashed else -0.01) or r_u == pytest.approx(10 - 0.01)
+    assert shaped.steps == 2000
+    # crashes counted by the bumper, not by the reward (a noisy range's progress term can be -5 too)
+    assert shaped.crashes == unshaped.crashes == crashes > 0
 
 
 @pytest.mark.parametrize("method", ["dqn", "ppo"])
