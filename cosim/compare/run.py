@@ -12,10 +12,10 @@ Methods (``--methods``, default: all but the optional deep-RL ones):
 * ``online``: the on-line model-based method (``cosim.online.run``; ``--online KEY=VALUE`` options).
 * ``offline``: the off-line model-free method (``cosim.offline.run.run_offline``).
 * ``baseline``: the hand-written reactive controller (``sim_world.baseline``) in the noisy world.
-* ``q-learning``, ``dyna-q``, ``prioritized-sweeping``: tabular learners (``peers.tabular``) in
-  one lifetime under the on-line protocol (``peers.lifetime``), once per ``--shaping``
-  (``unshaped``: target, crash and step rewards only; ``shaped``: plus the progress towards the
-  ball, a distance the 8-bit state does not contain). Hyper-parameters: ``peers.tabular.TUNED``,
+* ``q-learning``, ``dyna-q``, ``dyna-q+``, ``prioritized-sweeping``: tabular learners
+  (``peers.tabular``) in one lifetime under the on-line protocol (``peers.lifetime``), once per
+  ``--shaping`` (``unshaped``: target, crash and step rewards only; ``shaped``: plus the progress
+  towards the ball by the camera's noisy range, SPEC section 4, which the 8-bit state does not contain). Hyper-parameters: ``peers.tabular.TUNED``,
   chosen by experiments/tune_tabular.py on its tuning seeds.
 * ``dqn``, ``ppo`` (optional, ``pip install .[rl]``): stable-baselines3 on the Gymnasium env
   (``peers.deep``), under the same protocol, every environment step counted. Hyper-parameters:
