@@ -69,6 +69,10 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
     p.add_argument("--loop-cycles", type=int, default=d.loop_cycles, metavar="K",
                    help="stop a leg once the robot has gone K times round one simple cycle of "
                         "states back to where it is (SPEC section 7: 1; 0: off, the first reading)")
+    p.add_argument("--cycles-after-approach", action=argparse.BooleanOptionalAction,
+                   default=d.cycles_after_approach,
+                   help="the cycle stop counts only rounds since the last new closest approach (by the "
+                        "camera's range); --no-cycles-after-approach: odometry alone")
     p.add_argument("--distance", choices=DISTANCE_RULES, default=d.distance_rule,
                    help="dist[a] of the fitness: forward = SPEC section 7 (backward motions cover "
                         "0); covered = the paper's first reading (every translation)")
@@ -114,7 +118,8 @@ def config_from_args(args) -> OnlineConfig:
         switch_rate=args.switch_rate, replace_rate=args.replace_rate,
         max_leg_steps=args.max_leg_steps, loop_window=args.loop_window,
         loop_reentries=args.loop_reentries, loop_repeats=args.loop_repeats,
-        loop_radius_mm=args.loop_radius_mm, loop_cycles=args.loop_cycles, distance_rule=args.distance,
+        loop_radius_mm=args.loop_radius_mm, loop_cycles=args.loop_cycles,
+        cycles_after_approach=args.cycles_after_approach, distance_rule=args.distance,
         escape=args.escape, fail_rates=args.fail_rates, rate_mirror=args.rate_mirror,
         progress_weight=progress, loop_blame=args.loop_blame, max_interactions=args.max_interactions,
         blind_bit=args.blind_bit, blind_after_target=args.blind_after_target,

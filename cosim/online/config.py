@@ -57,6 +57,9 @@ class OnlineConfig:
     loop_repeats: int = 4  # repetitions of one cycle of 2..6 (state, motion) pairs (round 3)
     loop_radius_mm: float = 80.0  # the two above and loop_cycles: back within this, by odometry
     loop_cycles: int = 1  # rounds of one simple state cycle (SPEC section 7; round 5)
+    # the cycle stop counts only the rounds since the last new closest approach to the ball (by the
+    # camera's range); False: any rounds within loop_radius_mm by odometry (docs/online.md, honest sensing)
+    cycles_after_approach: bool = True
     # dist[a] of the fitness (ga.motions.DISTANCE_RULES): "forward" is SPEC section 7 (backward
     # motions cover 0; round 5); "covered", every translation, is the paper's first reading
     distance_rule: str = "forward"
@@ -116,7 +119,7 @@ class OnlineConfig:
         if not self.fail_rates:  # the deficit rides on the rate codes: none without them
             object.__setattr__(self, "progress_weight", 0.0)
         check(self.distance_rule in DISTANCE_RULES, "distance_rule", f"one of {', '.join(DISTANCE_RULES)}")
-        for field in ("noise", "reflex", "escape", "fail_rates", "rate_mirror"):
+        for field in ("noise", "reflex", "escape", "fail_rates", "rate_mirror", "cycles_after_approach"):
             check(isinstance(getattr(self, field), bool), field, "True or False")
         check(isinstance(self.arena, str) and bool(self.arena), "arena", "an arena name or .json path")
         check(self.ga in ("host", "hardware"), "ga", "host or hardware")
@@ -152,7 +155,7 @@ class OnlineConfig:
         if self.loop_repeats:
             found.append(Repeats(self.loop_repeats, self.loop_radius_mm))
         if self.loop_cycles:
-            found.append(Cycles(self.loop_cycles, self.loop_radius_mm))
+            found.append(Cycles(self.loop_cycles, self.loop_radius_mm, self.cycles_after_approach))
         return found
 
     def to_dict(self) -> dict:

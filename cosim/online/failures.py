@@ -196,15 +196,18 @@ class Repeats:
 
 class Cycles:
     """The robot is back in its current state after a simple cycle of p pairs (2 <= p <= 8, its
-    states distinct, one with an obstacle bit), gone round ``k`` times in a row since the last
-    new closest approach, and (``radius_mm`` > 0) by odometry within that distance of where the
-    first round began. The cycle's transitions are then the world model's latest entries, so the
-    model holds the loop the controller just ran (docs/online.md, round 5)."""
+    states distinct, one with an obstacle bit), gone round ``k`` times in a row (with
+    ``after_approach``: since the last new closest approach), and (``radius_mm`` > 0) by odometry
+    within that distance of where the first round began. The cycle's transitions are then the
+    world model's latest entries, so the model holds the loop the controller just ran
+    (docs/online.md, round 5). Without ``after_approach`` the odometry alone says the robot made
+    no progress: a new closest approach by the camera's noisy range is weak evidence of one
+    (docs/online.md, "Honest sensing")."""
 
     name, reason = "cycles", "loop"
 
-    def __init__(self, k: int, radius_mm: float = 0.0):
-        self.k, self.radius_mm = k, radius_mm
+    def __init__(self, k: int, radius_mm: float = 0.0, after_approach: bool = True):
+        self.k, self.radius_mm, self.after_approach = k, radius_mm, after_approach
         self.cycle: list[tuple[int, int]] = []  # the pairs of the last round when it fired
 
     def reset(self) -> None:
@@ -214,7 +217,7 @@ class Cycles:
         w, now = track.pairs, track.state
         for p in range(2, 9):
             n = self.k * p
-            if n > len(w) or n > track.since_closer:
+            if n > len(w) or (self.after_approach and n > track.since_closer):
                 break
             if w[-p][0] != now:
                 continue
