@@ -71,8 +71,8 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
                         "states back to where it is (SPEC section 7: 1; 0: off, the first reading)")
     p.add_argument("--cycles-after-approach", action=argparse.BooleanOptionalAction,
                    default=d.cycles_after_approach,
-                   help="the cycle stop counts only rounds since the last new closest approach (by the "
-                        "camera's range); --no-cycles-after-approach: odometry alone")
+                   help="the cycle stop counts only rounds since the last new closest approach by the "
+                        "camera's range (before issue 36); default --no-cycles-after-approach: odometry alone")
     p.add_argument("--distance", choices=DISTANCE_RULES, default=d.distance_rule,
                    help="dist[a] of the fitness: forward = SPEC section 7 (backward motions cover "
                         "0); covered = the paper's first reading (every translation)")

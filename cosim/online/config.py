@@ -57,9 +57,10 @@ class OnlineConfig:
     loop_repeats: int = 4  # repetitions of one cycle of 2..6 (state, motion) pairs (round 3)
     loop_radius_mm: float = 80.0  # the two above and loop_cycles: back within this, by odometry
     loop_cycles: int = 1  # rounds of one simple state cycle (SPEC section 7; round 5)
-    # the cycle stop counts only the rounds since the last new closest approach to the ball (by the
-    # camera's range); False: any rounds within loop_radius_mm by odometry (docs/online.md, honest sensing)
-    cycles_after_approach: bool = True
+    # False (the default since honest sensing, docs/online.md): the cycle stop by odometry alone, any
+    # rounds within loop_radius_mm; True: only rounds since the last new closest approach to the ball
+    # by the camera's range (before issue 36, by the exact distance)
+    cycles_after_approach: bool = False
     # dist[a] of the fitness (ga.motions.DISTANCE_RULES): "forward" is SPEC section 7 (backward
     # motions cover 0; round 5); "covered", every translation, is the paper's first reading
     distance_rule: str = "forward"
