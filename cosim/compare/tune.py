@@ -65,13 +65,16 @@ def _ppo_space(trial) -> dict:
 
 
 def _online_space(trial) -> dict:
-    rate = lambda name, lo, hi: trial.suggest_float(name, lo, hi, log=True)  # noqa: E731
+    def rate(name: str, lo: float, hi: float) -> float:
+        return trial.suggest_float(name, lo, hi, log=True)
+
     return {"generations_per_phase": trial.suggest_int("generations_per_phase", 4, 20),
             "literal_rate": rate("literal_rate", 1e-3, 2e-2), "output_rate": rate("output_rate", 1e-3, 2e-2),
             "switch_rate": rate("switch_rate", 2e-3, 5e-2), "replace_rate": rate("replace_rate", 1e-3, 2e-2),
             "progress_weight": trial.suggest_float("progress_weight", 0.0, 6.0),
             "loop_window": trial.suggest_int("loop_window", 40, 200),
-            "max_leg_steps": trial.suggest_int("max_leg_steps", 200, 1000)}
+            "max_leg_steps": trial.suggest_int("max_leg_steps", 200, 1000),
+            "cycles_after_approach": trial.suggest_categorical("cycles_after_approach", [False, True])}
 
 
 SPACES = {"online": _online_space, **{m: _tabular_space(m) for m in TABULAR}, "dqn": _dqn_space, "ppo": _ppo_space}
