@@ -183,14 +183,14 @@ class OnlineRun:
                 if extra := self.extra_stop(steps, at_target=True):
                     return extra, steps, s, a, ""
                 continue
+            if cfg.max_interactions and self.interactions >= cfg.max_interactions:  # before a failure
+                return "budget", steps, s, a, ""
             if step.crashed:
                 return "crash", steps, s, a, ""
             for detector, hit in zip(self.detectors, fired):
                 if hit:
                     return (detector.reason, steps, *self.blamed(detector),
                             detector.name if detector.reason == "loop" else "")
-            if cfg.max_interactions and self.interactions >= cfg.max_interactions:
-                return "budget", steps, s, a, ""
             if extra := self.extra_stop(steps, at_target=False):
                 return extra, steps, s, a, ""
 
