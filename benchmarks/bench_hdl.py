@@ -17,13 +17,14 @@ run by ``run_cocotb`` (the simulator and the cocotb Python run in one process), 
 from __future__ import annotations
 
 import json
-import os
 import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
+
+from base import environ
 
 N_STATES = 84  # the paper's |S| at the 64th target
 POPULATION = 100
@@ -90,7 +91,7 @@ if cocotb is not None:
         controller = HDLControllerBoard(system, check=False)
         evaluator = HDLEvaluatorBoard(system, check=False)
         figures = await bridge(_measure)(system, controller, evaluator, *_workload())
-        Path(os.environ[RESULT_ENV]).write_text(json.dumps(figures))
+        Path(environ.read(RESULT_ENV)).write_text(json.dumps(figures))
 
 
 def cocotb_figures(simulator: str = "icarus") -> dict:

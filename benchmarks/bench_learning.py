@@ -5,9 +5,13 @@ one core against the learning engine on the chip (SPEC section 12, issue 14).
   the NumPy truth tables and evaluator (``ga.evaluator.evaluate_population``), CPU time of one
   process (NumPy runs these single-threaded), best of 3, per stored world model.
 - ``onchip_learning_phase_s``: the engine's exact cycle count (``ga.hardware_ga.learn_cycles``,
-  checked against the RTL in tests/test_learner.py) at the Fmax of a placed and routed build of
-  the engine with ``onchip_lanes`` lanes (``onchip_fmax_source`` says which build).
-- ``onchip_learning_speedup_vs_numpy``: the ratio, per model.
+  checked against the RTL in tests/test_learner.py) at ``onchip_clock_mhz``, the clock the
+  bitstream runs at (the board's oscillator or the PLL output the build was made for, which the
+  routed ``onchip_fmax_mhz`` must meet), of the build with ``onchip_lanes`` lanes
+  (``onchip_fmax_source`` says which build). A build that records no clock gives no time.
+- ``onchip_learning_speedup_vs_numpy``: the ratio, per model, at that clock.
+- ``onchip_learning_speedup_at_fmax``: the same at the routed Fmax: what the engine as routed would
+  give clocked at its Fmax (a PLL it does not have yet), never the chip as built.
 - ``onchip_clock_for_10x_mhz``: the clock at which the engine with ``onchip_lanes`` lanes is 10x
   the NumPy GA (its cycles x 10 / the NumPy time), per model: the Fmax a build must reach.
 - ``hardware_ga_reference_phase_s``: the same phase in ``ga.hardware_ga`` (the bit-exact NumPy
@@ -118,10 +122,11 @@ def run() -> dict:
     if build:
         out.update({"onchip_lanes": lanes, "onchip_fmax_mhz": build["fmax_mhz"],
                     "onchip_luts": build["luts"], "onchip_lut_fraction": build["lut_fraction"]})
-        if build.get("clock_mhz"):  # the board's oscillator the bitstream was built for
-            out["onchip_board_clock_mhz"] = build["clock_mhz"]
+    clock = build_clock_mhz(build)
+    if clock:
+        out["onchip_clock_mhz"] = clock
     config = hg.HardwareGAConfig(population=POPULATION, tournament=TOURNAMENT, lanes=lanes)
-    numpy_s, onchip_s, cycles, speedup, ref_s, clock_10x = {}, {}, {}, {}, {}, {}
+    numpy_s, onchip_s, cycles, speedup, at_fmax, ref_s, clock_10x = {}, {}, {}, {}, {}, {}, {}
     for name, model in models().items():
         key = f"{name}_states"
         numpy_s[key] = round(host_phase_s(model), 4)
@@ -130,7 +135,9 @@ def run() -> dict:
         cycles[key] = n
         clock_10x[key] = round(n * 10 / numpy_s[key] / 1e6, 2)
         if build:
-            onchip_s[key] = round(n / (build["fmax_mhz"] * 1e6), 6)
+            at_fmax[key] = round(numpy_s[key] * build["fmax_mhz"] * 1e6 / n, 1)
+        if clock:
+            onchip_s[key] = round(n / (clock * 1e6), 6)
             speedup[key] = round(numpy_s[key] / onchip_s[key], 1)
     out.update({
         "numpy_learning_phase_s": numpy_s,
@@ -141,6 +148,20 @@ def run() -> dict:
         "learning_phase": f"{GENERATIONS} generations, population {POPULATION}, tournament {TOURNAMENT}",
     })
     if build:
+        out["onchip_learning_speedup_at_fmax"] = at_fmax
+    if clock:
         out["onchip_learning_phase_s"] = onchip_s
         out["onchip_learning_speedup_vs_numpy"] = speedup
     return out
+
+
+def build_clock_mhz(build: dict | None) -> float | None:
+    """The clock a learner bitstream runs at (its recorded ``clock_mhz``: the board oscillator or
+    PLL output it was built for); None where the build records none. A clock above the routed Fmax
+    is refused: that bitstream fails timing and its times mean nothing."""
+    if not build or not build.get("clock_mhz"):
+        return None
+    clock = float(build["clock_mhz"])
+    if clock > float(build["fmax_mhz"]):
+        raise ValueError(f"the learner build runs at {clock} MHz above its routed Fmax {build['fmax_mhz']} MHz")
+    return clock

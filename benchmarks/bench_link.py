@@ -18,11 +18,12 @@ The line's ceiling is baud / 10 bytes a second each way (8N1).
 from __future__ import annotations
 
 import json
-import os
 import tempfile
 from pathlib import Path
 
 import numpy as np
+
+from base import environ
 
 POPULATION = 20
 STOP_AND_WAIT = 5
@@ -85,14 +86,14 @@ if cocotb is not None:
 
         from cosim.link.simulated import host_timeout_s, start_top
 
-        baud = float(os.environ.get("EHW_BAUD") or BAUD)
+        baud = environ.read("EHW_BAUD", BAUD)
         line = await start_top(dut, baud, host_timeout_s(baud, P_MAX), "hdl")
 
         async def sim_time():
             return get_sim_time("ns") * 1e-9
 
         figures = await bridge(_measure)(line, resume(sim_time))
-        Path(os.environ[RESULT_ENV]).write_text(json.dumps(figures))
+        Path(environ.read(RESULT_ENV)).write_text(json.dumps(figures))
 
 
 def run() -> dict:
@@ -100,7 +101,7 @@ def run() -> dict:
     from cosim.launch.uart_sim import TOPLEVEL, write_link_verilog
     from ga.genome import GENOME_BITS
 
-    baud = float(os.environ.get("EHW_BAUD") or BAUD)
+    baud = environ.read("EHW_BAUD", BAUD)
     source = write_link_verilog(SIM_BUILD / "link_bench_verilog", baud=baud, p_max=P_MAX)
     with tempfile.TemporaryDirectory() as tmp:
         result = Path(tmp) / "link.json"

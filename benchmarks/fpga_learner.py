@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import re
 import shutil
 import subprocess
@@ -30,8 +29,10 @@ from pathlib import Path
 from amaranth.hdl import Cat, Elaboratable, Module, Signal
 from amaranth.lib.wiring import In
 
+from base import environ
+
 RESULTS = Path("results/fpga_learner.json")
-TOOLS_DIR = Path(os.environ.get("EHW_FPGA_TOOLS", "build/fpga-venv/bin"))
+TOOLS_DIR = Path(environ.read("EHW_FPGA_TOOLS", "build/fpga-venv/bin"))
 
 
 class PinHarness(Elaboratable):

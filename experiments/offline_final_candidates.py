@@ -6,7 +6,7 @@ A run folder of `ehw offline` with a final race (``--noisy-final-race``) keeps i
 last distinct elites) in ``checkpoint.json``. Each drives the run's 20 transfer noise seeds at the
 run's transfer leg limit (`cosim.offline.noisy.transfer`): one line per run with the race's
 winner and, per candidate, its failed legs in the race and its transfer fraction. It tells whether
-a better final choice could lift the run (docs/offline.md, round 6); the transfer seeds are never
+a better final choice could lift the run (docs/research-log.md, off-line round 6); the transfer seeds are never
 used by the run, so this is a check, not a selection rule.
 """
 

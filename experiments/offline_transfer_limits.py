@@ -1,4 +1,4 @@
-"""The transfer test of ``ehw offline`` at several leg limits (docs/offline.md, round 5): for each
+"""The transfer test of ``ehw offline`` at several leg limits (docs/research-log.md, off-line round 5): for each
 summary.json, the fraction of the 20 noise seeds ``seed * 1000 + i`` on which its best controller
 reaches every target with no crash and no leg time-out, at each limit; and the same for the
 hand-written baseline (``sim_world.baseline``) on the first summary's noise seeds.

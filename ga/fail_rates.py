@@ -1,4 +1,4 @@
-"""The robot's own failure rates, a fourth term of the on-line fitness (docs/online.md, round 14).
+"""The robot's own failure rates, a fourth term of the on-line fitness (docs/research-log.md, on-line round 14).
 
 The world model keeps one latest outcome per (state, motion); in obstacle states that outcome is
 wrong about 70 % of the time in the noisy world (round 7), so a controller the model calls safe
@@ -24,7 +24,7 @@ did:
   since round 18 with w = 3). The host also keeps each pair's summed gain towards the ball over the
   ``PROGRESS_STEPS`` steps after it (the whole distance when the leg reaches the ball first), and the
   code grows by 1.25 w per mm its mean gain falls short of the best pair of its state: of all that the
-  robot learns, only its progress ranked controllers as the real world does (docs/online.md, round 18).
+  robot learns, only its progress ranked controllers as the real world does (docs/research-log.md, on-line round 18).
 - **Fail count** (the evaluator, :func:`fail_counts`). F = the sum of the codes of the controller's
   motions in the obstacle states of S, each state once: the shape of the distance term, summed
   in the same trace step. The fitness loses ``W_FAIL`` F / (N ``RATE_ONE``) (``ga.evaluator.fitness``):
@@ -32,7 +32,7 @@ did:
 
 ``RATE_ONE`` = 10 ``W_FAIL`` D (D = 50 mm, the largest dist[a]) makes the learning engine's integer
 score (``ga.hardware_ga.score``, 10 D N times the fitness) lose exactly F: no multiplier on the chip.
-Measured (docs/online.md, round 14): median interactions to 64 targets 6,620 against 8,294.5 on
+Measured (docs/research-log.md, on-line round 14): median interactions to 64 targets 6,620 against 8,294.5 on
 held-out seeds 181-200 (float rates; the codes: round 15). The mirror pooling (round 16): 6,503
 against 7,484.5 on held-out seeds 221-240, 5,804 against 6,875 on 201-220.
 """
@@ -84,7 +84,7 @@ def mean_gains(gain: np.ndarray, count: np.ndarray) -> np.ndarray:
 
 
 def progress_codes(codes: np.ndarray, gain: np.ndarray, count: np.ndarray, weight: float) -> np.ndarray:
-    """The rate codes with each pair's *progress deficit* added (docs/online.md, round 18):
+    """The rate codes with each pair's *progress deficit* added (docs/research-log.md, on-line round 18):
     code + round(``weight`` RATE_ONE / (W_FAIL D PROGRESS_STEPS) (g_best(s) - g(s, a))), clipped to
     0..RATE_ONE, where g is the pair's mean gain towards the ball over the PROGRESS_STEPS steps after
     it (``gain`` / ``count``; a pair never measured: the mean of all) and g_best(s) the best of its

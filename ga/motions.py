@@ -59,7 +59,7 @@ MAX_MOTION_DISTANCE_MM = int(MOTION_DISTANCE_MM.max())
 # forward translation of the motion, so a backward step covers 0 like a turn. "covered" (the
 # paper's first reading, an option) counts every translation, backward ones too: it pays a
 # backward-turn 50 mm where a turn in place gets 0, and the looping back-off-and-return it
-# favours is what most on-line interactions were lost to (docs/online.md, round 5). The maximum
+# favours is what most on-line interactions were lost to (docs/research-log.md, on-line round 5). The maximum
 # (forward, 50 mm) is the same for both, so the fitness keeps its scale.
 DISTANCE_RULES = ("covered", "forward")
 DEFAULT_DISTANCE_RULE = "forward"
@@ -99,7 +99,7 @@ REFLEX_TABLE[REFLEX_STATES] = REFLEX_MOTION
 # symmetric about the heading). The mirror image of a state swaps front-left/front-right and
 # left/right obstacle bits and the left/right target sectors; that of a motion swaps each left
 # turn with its right one. Every outcome the robot observes, (s, a) -> s2 or a crash, is therefore
-# evidence of (m(s), m(a)) -> m(s2) (docs/online.md, round 12). The reflex is not symmetric: with
+# evidence of (m(s), m(a)) -> m(s2) (docs/research-log.md, on-line round 12). The reflex is not symmetric: with
 # the target behind it turns left in both mirror images (REFLEX_TABLE), so the mirror is a
 # statement about the world, not about the controller.
 MIRROR_SECTOR = np.array([Sector.FRONT, Sector.RIGHT, Sector.BACK, Sector.LEFT], dtype=np.uint8)

@@ -111,7 +111,7 @@ def run_course(
     pose is sensed, so a leg's noise does not depend on what earlier legs drew (common random
     numbers per leg: two controllers that drive a leg alike meet the same noise there).
     ``near_miss_mm`` > 0: count the motions (crashed ones excluded) after which the bumper is
-    closer than this to an obstacle (``near_misses``; docs/offline.md round 5). ``count_backs``:
+    closer than this to an obstacle (``near_misses``; docs/research-log.md, off-line round 5). ``count_backs``:
     count the backward motions executed with an obstacle beside or behind (x3, x4 or x5 set;
     ``obstacle_backs``).
     """

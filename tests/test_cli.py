@@ -14,37 +14,11 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import REPO_ROOT
+from conftest import REPO_ROOT, one_error
 
 from base.runs import LATEST, RunLock
-from cosim.cli.main import main as ehw_main
 
 TINY = ["--arena", "empty", "--targets", "1", "--population", "20", "--quiet", "--no-plots"]
-
-
-@pytest.fixture
-def ehw(tmp_path, monkeypatch, capsys):
-    """``ehw(*args) -> (status, stdout, stderr)`` with the working directory a fresh folder."""
-    monkeypatch.chdir(tmp_path)
-    for name in ("EHW_SIM", "EHW_HDL_SAMPLE", "WAVES", "EHW_CLOCK_HZ", "EHW_SYSTEM_P_MAX"):
-        monkeypatch.delenv(name, raising=False)
-
-    def run(*args):
-        capsys.readouterr()
-        status = ehw_main([str(a) for a in args])
-        out, err = capsys.readouterr()
-        return status, out, err
-
-    return run
-
-
-def _one_error(status, err, *words):
-    """A user error: exit status 2 and one `error:` line naming the problem, no traceback."""
-    lines = err.strip().splitlines()
-    assert status == 2, err
-    assert len(lines) == 1 and lines[0].startswith("error: "), err
-    for word in words:
-        assert word in lines[0], (word, lines[0])
 
 
 # -- the console script ---------------------------------------------------------------------------
@@ -56,7 +30,7 @@ def test_help_lists_the_subcommands(ehw):
     import cosim.cli.main
 
     text = cosim.cli.main.build_parser().format_help()
-    for name in ("sim", "offline", "compare", "verilog", "bench", "arena", "baseline"):
+    for name in ("sim", "offline", "compare", "verilog", "bench", "arena", "baseline", "limit"):
         assert f"    {name} " in text, name
 
 
@@ -82,7 +56,7 @@ def test_console_script_and_make_use_one_simulator(monkeypatch):
     """`ehw sim --backend cocotb` and `make sim BACKEND=cocotb` ran Icarus and Verilator."""
     import argparse
 
-    from cosim.cli.main import resolve_hdl_settings
+    from cosim.cli.options import resolve_hdl_settings
 
     monkeypatch.delenv("EHW_SIM", raising=False)
     monkeypatch.delenv("EHW_HDL_SAMPLE", raising=False)
@@ -119,7 +93,7 @@ def test_out_holding_a_run_is_refused(ehw, tmp_path):
     assert ehw("sim", *TINY, "--out", "run")[0] == 0
     before = (tmp_path / "run/summary.json").read_bytes()
     status, out, err = ehw("sim", *TINY, "--seed", "3", "--out", "run")
-    _one_error(status, err, "'run'", "already holds a run", "--resume", "--force")
+    one_error(status, err, "'run'", "already holds a run", "--resume", "--force")
     assert "wrote" not in out
     assert (tmp_path / "run/summary.json").read_bytes() == before
 
@@ -140,7 +114,7 @@ def test_force_replaces_and_leaves_no_stale_plot(ehw, tmp_path):
     assert ehw("sim", "--resume", "--out", "run2", "--quiet", "--no-plots")[0] == 0
     assert not list((tmp_path / "run2").glob("*.png"))
     assert {p.name for p in (tmp_path / "run2").iterdir()} == {
-        ".lock", "checkpoint.json", "config.toml", "sessions.json", "summary.json"}
+        ".lock", "checkpoint.json", "config.toml", "sessions.json", "summary.json", "lifetime.npz"}
 
 
 def test_a_folder_in_use_is_refused_and_a_dead_lock_taken_over(ehw, tmp_path):
@@ -148,7 +122,7 @@ def test_a_folder_in_use_is_refused_and_a_dead_lock_taken_over(ehw, tmp_path):
     folder.mkdir()
     with RunLock(folder):
         status, _, err = ehw("sim", *TINY, "--out", folder)
-    _one_error(status, err, str(folder), "in use by process", str(os.getpid()))
+    one_error(status, err, str(folder), "in use by process", str(os.getpid()))
     # A lock file left by a process that died (kill -9): the kernel dropped its lock.
     (folder / ".lock").write_text(json.dumps({"pid": 999_999_999, "command": "ehw sim"}))
     assert ehw("sim", *TINY, "--out", folder)[0] == 0
@@ -166,7 +140,7 @@ def test_two_sim_processes_on_one_folder(tmp_path):
     results = [(p.wait(timeout=120), *p.communicate()) for p in procs]
     shared = sorted(results[:2], key=lambda r: r[0])
     assert shared[0][0] == 0, shared[0][2]
-    _one_error(shared[1][0], shared[1][2], "'shared'")
+    one_error(shared[1][0], shared[1][2], "'shared'")
     assert ("in use by process" in shared[1][2]) or ("already holds a run" in shared[1][2])
     sessions = json.loads((tmp_path / "shared/sessions.json").read_text())
     assert len(sessions) == 1
@@ -190,7 +164,7 @@ def test_two_sim_processes_on_one_folder(tmp_path):
 ])
 def test_bad_options_are_refused_before_any_work(ehw, tmp_path, args, words):
     status, _, err = ehw("sim", *TINY, *args)
-    _one_error(status, err, *words)
+    one_error(status, err, *words)
     assert not (tmp_path / "results").exists()
 
 
@@ -200,7 +174,7 @@ def test_bad_environment_is_refused_at_startup(ehw, tmp_path, monkeypatch, name,
     """EHW_CLOCK_HZ=abc was read after the whole run, which then ended in a traceback."""
     monkeypatch.setenv(name, value)
     status, _, err = ehw("sim", *TINY)
-    _one_error(status, err, name, repr(value))
+    one_error(status, err, name, repr(value))
     assert not (tmp_path / "results").exists()
 
 
@@ -217,14 +191,14 @@ def _arena_file(tmp_path, **changes) -> Path:
 def test_bad_files_end_as_one_error_line(ehw, tmp_path):
     """Arena, config, checkpoint and file errors ended as 20-line tracebacks."""
     (tmp_path / "broken.json").write_text("{not json")
-    _one_error(*ehw("sim", *TINY, "--arena", tmp_path / "broken.json")[::2], "broken.json", "not valid JSON")
+    one_error(*ehw("sim", *TINY, "--arena", tmp_path / "broken.json")[::2], "broken.json", "not valid JSON")
     arena = _arena_file(tmp_path, ball_radius_mm=-100)
-    _one_error(*ehw("sim", *TINY, "--arena", arena)[::2], "ball_radius_mm", "-100")
-    _one_error(*ehw("offline", "--arena", arena, "--quiet")[::2], "ball_radius_mm")
-    _one_error(*ehw("baseline", "--arena", arena)[::2], "ball_radius_mm")
-    _one_error(*ehw("arena", "--arena", arena)[::2], "ball_radius_mm")
+    one_error(*ehw("sim", *TINY, "--arena", arena)[::2], "ball_radius_mm", "-100")
+    one_error(*ehw("offline", "--arena", arena, "--quiet")[::2], "ball_radius_mm")
+    one_error(*ehw("baseline", "--arena", arena)[::2], "ball_radius_mm")
+    one_error(*ehw("arena", "--arena", arena)[::2], "ball_radius_mm")
     (tmp_path / "out_is_a_file").write_text("x")
-    _one_error(*ehw("sim", *TINY, "--out", "out_is_a_file")[::2], "out_is_a_file", "is a file")
+    one_error(*ehw("sim", *TINY, "--out", "out_is_a_file")[::2], "out_is_a_file", "is a file")
     assert not (tmp_path / "results").exists()
 
 
@@ -233,7 +207,7 @@ def test_compare_adaptation_only_checks_its_input_first(ehw, tmp_path):
     t0 = time.perf_counter()
     status, _, err = ehw("compare", "--adaptation-only", "--blind-bit", "0", "--blind-after-target", "2",
                          "--out", "nothing")
-    _one_error(status, err, "nothing/compare.json")
+    one_error(status, err, "nothing/compare.json")
     assert time.perf_counter() - t0 < 5
     assert not (tmp_path / "nothing/compare").exists()
 
@@ -241,9 +215,9 @@ def test_compare_adaptation_only_checks_its_input_first(ehw, tmp_path):
 def test_offline_resume_without_a_checkpoint_is_refused(ehw, tmp_path):
     """offline --resume without a checkpoint silently started afresh."""
     (tmp_path / "run").mkdir()
-    _one_error(*ehw("offline", "--resume", "--out", "run", "--quiet")[::2], "'run'", "checkpoint.json")
-    _one_error(*ehw("sim", "--resume", *TINY)[::2], "latest")
-    assert list((tmp_path / "run").iterdir()) == [tmp_path / "run/.lock"]
+    one_error(*ehw("offline", "--resume", "--out", "run", "--quiet")[::2], "'run'", "checkpoint.json")
+    one_error(*ehw("sim", "--resume", *TINY)[::2], "latest")
+    assert list((tmp_path / "run").iterdir()) == []  # a failed start leaves the folder as it was
 
 
 def test_render_of_an_arena_path_writes_beside_the_others(ehw, tmp_path):
@@ -272,7 +246,7 @@ def test_a_hand_edited_checkpoint_is_refused(ehw, tmp_path, edit):
     assert ehw("sim", *TINY, "--targets", "3", "--out", "run")[0] == 0
     _edit_checkpoint(tmp_path / "run/checkpoint.json", edit)
     status, _, err = ehw("sim", "--resume", "--out", "run", "--quiet", "--no-plots")
-    _one_error(status, err, "checkpoint.json", "checksum")
+    one_error(status, err, "checkpoint.json", "checksum")
 
 
 def test_resume_uses_the_stored_config(ehw, tmp_path):
@@ -282,7 +256,7 @@ def test_resume_uses_the_stored_config(ehw, tmp_path):
     assert ehw("sim", "--resume", "--out", "run", "--quiet", "--no-plots")[0] == 0
     again = json.loads((tmp_path / "run/summary.json").read_text())
     assert again["config"] == whole["config"] and again["interactions"] == whole["interactions"]
-    _one_error(*ehw("sim", "--resume", "--out", "run", "--population", "30")[::2], "--population 30", "stored 20")
+    one_error(*ehw("sim", "--resume", "--out", "run", "--population", "30")[::2], "--population 30", "stored 20")
     sessions = json.loads((tmp_path / "run/sessions.json").read_text())
     assert [s["resumed"] for s in sessions] == [False, True]
 
@@ -316,7 +290,7 @@ def test_config_file_flags_override_and_summary_reruns(ehw, tmp_path):
 ])
 def test_config_file_errors_name_the_key(ehw, tmp_path, text, words):
     (tmp_path / "bad.toml").write_text(text)
-    _one_error(*ehw("sim", "--config", "bad.toml", *TINY)[::2], "bad.toml", *words)
+    one_error(*ehw("sim", "--config", "bad.toml", *TINY)[::2], "bad.toml", *words)
     assert not (tmp_path / "results").exists()
 
 
@@ -359,7 +333,7 @@ def test_offline_resume_keeps_the_run_options(ehw, tmp_path):
     summary = json.loads((tmp_path / "run/summary.json").read_text())
     assert summary["seed"] == 3 and summary["generations"] == 2
     config = (tmp_path / "run/config.toml").read_text()
-    _one_error(*ehw("offline", "--resume", "--out", "run", "--seed", "4")[::2], "seed: saved 3, now 4")
+    one_error(*ehw("offline", "--resume", "--out", "run", "--seed", "4")[::2], "seed: saved 3, now 4")
     assert (tmp_path / "run/config.toml").read_text() == config
 
 
@@ -372,6 +346,6 @@ def test_a_fresh_run_that_fails_leaves_no_folder(ehw, tmp_path, monkeypatch):
         raise BackendUnavailable("backend 'reference' is not available (a test)")
 
     monkeypatch.setattr("cosim.online.run.make_boards", unavailable)
-    _one_error(*ehw("sim", *TINY, "--seed", "2")[::2], "not available")
+    one_error(*ehw("sim", *TINY, "--seed", "2")[::2], "not available")
     assert [p for p in (tmp_path / "results/model_based").iterdir() if p.name != LATEST] == [before]
     assert (tmp_path / "results/model_based" / LATEST).resolve() == before

@@ -1,5 +1,5 @@
 """`ehw compare`, `ehw baseline`, `ehw arena` and `ehw bench` (issue 15, second round): one option
-table for `ehw compare` and `python -m cosim.compare.run`, every input checked before any work, and
+table for `ehw compare`, every input checked before any work, and
 run folders that keep every run (a fresh folder and `latest`; an `--out` holding a run refused).
 
 Each test failed before this round: compare passed its arguments through (no --config, no
@@ -9,23 +9,21 @@ defaults in its help), baseline/arena/bench wrote fixed files that the next run 
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 import threading
 import time
 from pathlib import Path
 
 import pytest
-from conftest import REPO_ROOT
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from test_cli import _arena_file, _one_error, ehw  # noqa: F401  (the fixture)
+from conftest import one_error
+from test_cli import _arena_file
 
 from base.runs import LATEST
 
 # A comparison of a second or two: the baseline on one seed, Q-learning capped at 200 interactions.
 SMALL = ["--seeds", "1", "--methods", "baseline,q-learning", "--shaping", "shaped",
-         "--max-interactions", "200", "--jobs", "1", "--quiet"]
+         "--max-interactions", "200", "--jobs", "1", "--quiet", "--no-planner-limit"]
 
 
 def _runs(root: Path) -> list[Path]:
@@ -48,17 +46,6 @@ def test_compare_help_shows_every_option_and_its_default(ehw):
                  "--config FILE", "--limit-seeds ROW=N", "--cluster", "--cache DIR", "--fresh", "--jobs J"):
         assert flag in text, flag
     assert "(default: 5)" in text and "(default: results/compare/cache)" in text
-
-
-def test_compare_has_one_option_table():
-    """`ehw compare` and `python -m cosim.compare.run` take the same options (one definition)."""
-    import cosim.cli.main
-    from cosim.compare import run as compare
-
-    cosim.cli.main.build_parser()
-    ehw_options = {a.dest for a in cosim.cli.main._SUBPARSERS["compare"]._actions}
-    module_options = {a.dest for a in compare.build_parser()._actions}
-    assert ehw_options - module_options == {"config"} and module_options <= ehw_options
 
 
 @pytest.mark.parametrize("args, words", [
@@ -92,21 +79,21 @@ def test_compare_has_one_option_table():
 ])
 def test_compare_inputs_are_checked_before_any_work(ehw, tmp_path, args, words):
     t0 = time.perf_counter()
-    _one_error(*ehw("compare", *args)[::2], *words)
+    one_error(*ehw("compare", *args)[::2], *words)
     assert time.perf_counter() - t0 < 5
     assert not (tmp_path / "results").exists()
 
 
 def test_compare_files_are_checked_first(ehw, tmp_path):
     (tmp_path / "broken.json").write_text("{not json")
-    _one_error(*ehw("compare", *SMALL, "--arena", "broken.json")[::2], "broken.json", "not valid JSON")
-    _one_error(*ehw("compare", *SMALL, "--arena", _arena_file(tmp_path, ball_radius_mm=-1))[::2], "ball_radius_mm")
+    one_error(*ehw("compare", *SMALL, "--arena", "broken.json")[::2], "broken.json", "not valid JSON")
+    one_error(*ehw("compare", *SMALL, "--arena", _arena_file(tmp_path, ball_radius_mm=-1))[::2], "ball_radius_mm")
     (tmp_path / "a_file").write_text("x")
-    _one_error(*ehw("compare", *SMALL, "--cache", "a_file")[::2], "--cache", "a_file", "is a file")
-    _one_error(*ehw("compare", *SMALL, "--out", "a_file")[::2], "a_file", "is a file")
+    one_error(*ehw("compare", *SMALL, "--cache", "a_file")[::2], "--cache", "a_file", "is a file")
+    one_error(*ehw("compare", *SMALL, "--out", "a_file")[::2], "a_file", "is a file")
     (tmp_path / "half").mkdir()
     (tmp_path / "half/compare.json").write_text("[]")
-    _one_error(*ehw("compare", "--adaptation-only", "--blind-bit", "0", "--blind-after-target", "2",
+    one_error(*ehw("compare", "--adaptation-only", "--blind-bit", "0", "--blind-after-target", "2",
                     "--out", "half")[::2], "half/compare.json", "not a compare report")
     assert not (tmp_path / "results").exists()
 
@@ -122,7 +109,7 @@ def test_compare_files_are_checked_first(ehw, tmp_path):
 ])
 def test_compare_config_file_errors_name_the_key(ehw, tmp_path, text, words):
     (tmp_path / "bad.toml").write_text(text)
-    _one_error(*ehw("compare", "--config", "bad.toml", "--seeds", "1", "--jobs", "1", "--quiet")[::2], *words)
+    one_error(*ehw("compare", "--config", "bad.toml", "--seeds", "1", "--jobs", "1", "--quiet")[::2], *words)
     assert not (tmp_path / "results").exists()
 
 
@@ -142,7 +129,7 @@ def test_compare_runs_keep_both_and_rerun_from_their_config(ehw, tmp_path):
     assert (root / "cache").is_dir()
     before = (second / "compare.json").read_bytes()
     status, out, err = ehw("compare", *SMALL, "--out", second)
-    _one_error(status, err, "already holds a run", "--force")
+    one_error(status, err, "already holds a run", "--force")
     assert (second / "compare.json").read_bytes() == before
     # The run's config.toml and its compare.json re-run it (from the cache: the same table).
     for source in (second / "config.toml", second / "compare.json"):
@@ -157,12 +144,12 @@ def test_compare_resume_and_force(ehw, tmp_path):
     assert ehw("compare", *SMALL, "--out", "run")[0] == 0
     # --resume continues the comparison under its stored options; a flag that changes it is refused.
     assert ehw("compare", "--resume", "--out", "run", "--jobs", "2", "--quiet")[0] == 0
-    _one_error(*ehw("compare", "--resume", "--out", "run", "--seeds", "3")[::2], "--seeds 3", "stored 1")
+    one_error(*ehw("compare", "--resume", "--out", "run", "--seeds", "3")[::2], "--seeds 3", "stored 1")
     assert ehw("compare", *SMALL, "--methods", "baseline", "--out", "run", "--force")[0] == 0
     report = json.loads((tmp_path / "run/compare.json").read_text())
     assert set(report["per_seed"]) == {"baseline"}
     # --force replaces one comparison, never a tree of runs.
-    _one_error(*ehw("compare", *SMALL, "--out", ".", "--force")[::2], "holds other runs")
+    one_error(*ehw("compare", *SMALL, "--out", ".", "--force")[::2], "holds other runs")
     assert (tmp_path / "run/compare.json").exists()
 
 
@@ -178,7 +165,7 @@ def test_an_interrupted_comparison_resumes_and_a_refused_one_leaves_nothing(ehw,
 
     real_executor, real = cosim.compare.sweep.executor, cosim.compare.sweep.run_sweep
     monkeypatch.setattr(cosim.compare.sweep, "executor", unreachable)
-    _one_error(*ehw("compare", *SMALL, "--seeds", "2", "--cluster", "tcp://nowhere:1")[::2], "--cluster", "nowhere")
+    one_error(*ehw("compare", *SMALL, "--seeds", "2", "--cluster", "tcp://nowhere:1")[::2], "--cluster", "nowhere")
     assert _runs(root) == [done] and (root / LATEST).resolve() == done
     monkeypatch.setattr(cosim.compare.sweep, "executor", real_executor)
 
@@ -204,22 +191,6 @@ def test_compare_reuse_and_render_read_an_earlier_comparison(ehw, tmp_path):
     assert "reactive baseline" in (tmp_path / "second/compare.md").read_text()
 
 
-def test_python_m_cosim_compare_is_the_same_command_without_cosim_cli(tmp_path):
-    """The lower-layer form: its own parser from the one option table, the same checks and
-    run folders, and no import of cosim.cli.main."""
-    code = ("import sys; from cosim.compare import run as compare; status = compare.main(sys.argv[1:]); "
-            "assert 'cosim.cli.main' not in sys.modules, 'imported cosim.cli.main'; raise SystemExit(status)")
-    run = lambda *args: subprocess.run([sys.executable, "-c", code, *args], cwd=tmp_path, text=True,  # noqa: E731
-                                       capture_output=True, env={"PYTHONPATH": str(REPO_ROOT), "PATH": "/usr/bin:/bin"})
-    bad = run("--seeds", "0")
-    _one_error(bad.returncode, bad.stderr, "--seeds")
-    bad = run("--seeds", "x")
-    _one_error(bad.returncode, bad.stderr, "--seeds", "'x'")
-    good = run(*SMALL)
-    assert good.returncode == 0, good.stderr
-    assert (tmp_path / "results/compare" / LATEST / "compare.json").is_file()
-
-
 # -- baseline, arena, bench: run folders ------------------------------------------------------------
 
 
@@ -234,15 +205,15 @@ def test_baseline_runs_keep_both_and_out_is_refused(ehw, tmp_path):
     assert json.loads((first / "baseline.json").read_text())["noisy"][0]["seed"] == 0
     assert json.loads((second / "baseline.json").read_text())["noisy"] == []
     before = (second / "baseline.json").read_bytes()
-    _one_error(*ehw("baseline", "--arena", "empty", "--out", second)[::2], "already holds a run", "--force")
+    one_error(*ehw("baseline", "--arena", "empty", "--out", second)[::2], "already holds a run", "--force")
     assert (second / "baseline.json").read_bytes() == before
     # Its config.toml re-runs it; --force replaces it.
     assert ehw("baseline", "--config", first / "config.toml", "--out", "again")[0] == 0
     assert json.loads((tmp_path / "again/baseline.json").read_text())["noisy"] == \
         json.loads((first / "baseline.json").read_text())["noisy"]
     assert ehw("baseline", "--arena", "empty", "--seeds", "0", "--out", "again", "--force")[0] == 0
-    _one_error(*ehw("baseline", "--first-seed", "-1")[::2], "--first-seed", "-1")
-    _one_error(*ehw("baseline", "--out", "results", "--force")[::2], "holds other runs")
+    one_error(*ehw("baseline", "--first-seed", "-1")[::2], "--first-seed", "-1")
+    one_error(*ehw("baseline", "--out", "results", "--force")[::2], "holds other runs")
 
 
 def test_arena_runs_keep_both_and_out_is_refused(ehw, tmp_path):
@@ -255,7 +226,7 @@ def test_arena_runs_keep_both_and_out_is_refused(ehw, tmp_path):
     assert [p.name for p in runs[0].glob("*.png")] == ["arena_empty.png"]
     assert [p.name for p in runs[1].glob("*.png")] == ["arena_one_obstacle.png"]
     assert ehw("arena", "--arena", "empty", "--out", "pics")[0] == 0
-    _one_error(*ehw("arena", "--arena", "one_obstacle", "--out", "pics")[::2], "'pics'", "already holds a run")
+    one_error(*ehw("arena", "--arena", "one_obstacle", "--out", "pics")[::2], "'pics'", "already holds a run")
     assert ehw("arena", "--arena", "one_obstacle", "--out", "pics", "--force")[0] == 0
     assert [p.name for p in (tmp_path / "pics").glob("*.png")] == ["arena_one_obstacle.png"]
 
@@ -279,11 +250,11 @@ def test_bench_keeps_every_run_and_merges_into_results_bench_json(ehw, tmp_path,
     assert "a" not in json.loads((runs[1] / "bench.json").read_text())
     merged = json.loads((tmp_path / "results/bench.json").read_text())
     assert merged["a"] == 3 and merged["b"] == 2  # the newest figure of every module
-    _one_error(*ehw("bench", "bench_a", "--out", "mine")[::2], "'mine'", "already holds a run")
-    _one_error(*ehw("bench", "--out", "results/bench.json")[::2], "--out", "--figures")
-    _one_error(*ehw("bench", "nope")[::2], "nope")
+    one_error(*ehw("bench", "bench_a", "--out", "mine")[::2], "'mine'", "already holds a run")
+    one_error(*ehw("bench", "--out", "results/bench.json")[::2], "--out", "--figures")
+    one_error(*ehw("bench", "nope")[::2], "nope")
     (tmp_path / "list.json").write_text("[1]")
-    _one_error(*ehw("bench", "--figures", "list.json")[::2], "list.json", "no JSON object")
+    one_error(*ehw("bench", "--figures", "list.json")[::2], "list.json", "no JSON object")
 
 
 def test_two_merges_at_once_both_land(tmp_path):

@@ -16,7 +16,6 @@ from cosim.compare.run import (
     METHODS,
     build_report,
     fixed_controller_adaptation,
-    main,
     make_tasks,
     markdown,
     run_task,
@@ -26,6 +25,13 @@ from cosim.compare.sweep import Cache, executor, run_sweep
 from ga.genome import hex_from_rows
 from ga.operators import random_population
 
+
+
+def main(argv) -> int:
+    """``ehw compare ARGV`` (its exit status)."""
+    from cosim.cli.main import main as ehw
+
+    return ehw(["compare", *argv])
 
 @pytest.fixture(autouse=True)
 def _in_tmp(tmp_path, monkeypatch):
@@ -55,7 +61,7 @@ def test_report_medians_ranges_and_ratio(tmp_path):
     q = report["methods"]["q-learning/shaped"]
     assert q["reached_64"] == 2 and q["capped"] == {2: 40}
     text = markdown(report)
-    assert "| on-line model-based | 3/3 | 12,000 (10,000-20,000) | 3 |" in text
+    assert "| on-line model-based | 3/3 | 12,000 (10,000-20,000) | - | 3 |" in text  # no limit planned: "-"
     assert "| off-line model-free | 3/3 | 3,000,000 (2,400,000-4,000,000) |" in text
     assert "| Q-learning, shaped | 2/3 | 9,000 (7,000-100,000) |" in text
     assert "| paper, on-line | yes | 12,280 |" in text and "| paper, off-line | yes | 3,283,269 |" in text
@@ -144,7 +150,7 @@ def test_online_options_are_typed_checked_and_reported():
 # -- the executors and the cache -----------------------------------------------------------------
 
 SMALL = ["--seeds", "2", "--methods", "baseline,q-learning", "--shaping", "shaped",
-         "--max-interactions", "800", "--jobs", "2"]
+         "--max-interactions", "800", "--jobs", "2", "--no-planner-limit"]
 
 
 def _figures(path):

@@ -198,3 +198,16 @@ def test_learning_bench_takes_the_fmax_from_the_build_and_says_which(tmp_path, m
                        {"lanes": 8, "fmax_mhz": 30.0, "luts": 60_000, "luts_available": 83_640, "built": "now"})
     build, source = bench.fpga_build()
     assert source.startswith("results/fpga.json") and (build["lanes"], build["fmax_mhz"]) == (8, 30.0)
+
+
+def test_learning_bench_times_the_chip_at_the_clock_it_runs_at():
+    """The on-chip speedup is quoted at the bitstream's clock (the recorded build: the ULX3S's
+    25 MHz oscillator), never at a routed Fmax it is not clocked at; a clock above the Fmax (a
+    build that fails timing) is refused, and a build that records no clock gives no time."""
+    from benchmarks import bench_learning as bench
+
+    recorded = json.loads(bench.RECORDED.read_text())["ulx3s-learner"]
+    assert bench.build_clock_mhz(recorded) == recorded["clock_mhz"] < recorded["fmax_mhz"]
+    assert bench.build_clock_mhz({**recorded, "clock_mhz": None}) is None
+    with pytest.raises(ValueError, match="above its routed Fmax"):
+        bench.build_clock_mhz({**recorded, "clock_mhz": recorded["fmax_mhz"] + 1})

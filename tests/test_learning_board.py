@@ -4,7 +4,7 @@ hardware; the on-line run's --ga hardware option."""
 
 import pytest
 
-from cosim.cli.online import main
+from cosim.cli.main import main
 from cosim.online.run import OnlineConfig, make_run
 from ga.fail_rates import PRIOR_CODE
 
@@ -83,7 +83,7 @@ def test_hardware_ga_option_checks(capsys, monkeypatch):
     with pytest.raises(ValueError, match="--lanes must be"):
         OnlineConfig(ga="hardware", lanes=0)
     # every backend has a learning board; a serial one needs its port (tests/test_learner_link.py)
-    assert main(["--ga", "hardware", "--backend", "serial", "--out", "/nonexistent"]) == 2
+    assert main(["sim", "--ga", "hardware", "--backend", "serial", "--out", "/nonexistent"]) == 2
     assert capsys.readouterr().err.startswith("error: the serial backend needs a port")
 
 

@@ -9,7 +9,8 @@ import pytest
 
 from cosim.boards.reference import ReferenceControllerBoard, ReferenceEvaluatorBoard
 from cosim.boards.registry import make_boards
-from cosim.cli.online import build_parser, config_from_args, main
+from cosim.cli.main import main
+from cosim.cli.online import build_parser, config_from_args
 from cosim.online.config import option
 from cosim.online.report import adaptation_figures, summary_table
 from cosim.online.run import OnlineConfig, OnlineRun, make_run
@@ -280,9 +281,9 @@ def test_config_refuses_bad_values_naming_the_option(field, value, message):
 
 
 def test_command_line_error_is_one_line_and_status_2(capsys):
-    assert main(["--loop-window", "-3", "--no-progress"]) == 2
+    assert main(["sim", "--loop-window", "-3", "--quiet"]) == 2
     err = capsys.readouterr().err
-    assert err == "error: --loop-window must be >= 0, got -3\n"
+    assert err == "error: --loop-window must not be negative, got -3\n"
 
 
 def test_dropped_options_are_gone():

@@ -1,6 +1,6 @@
 """The ``amaranth`` board backend: both EHW boards cycle-accurate in Amaranth's simulator.
 
-    python -m cosim.online.run --backend amaranth --seed 1      (make sim BACKEND=amaranth)
+    ehw sim --backend amaranth --seed 1      (make sim BACKEND=amaranth)
 
 One ``hdl.system_top.SystemTop`` (controller EHW + evaluator EHW + population streamer) lives in
 one ``amaranth.sim.Simulator`` for the whole run. Amaranth 0.5 cannot add a testbench to a running
@@ -23,11 +23,11 @@ backends) and the evaluator's spot-check mode (``EHW_HDL_SAMPLE``, see docs/hdl_
 
 from __future__ import annotations
 
-import os
 import time
 
 import numpy as np
 
+from base import environ
 from cosim.boards.hardware_time import CLOCK_HZ
 from cosim.boards.interfaces import BoardMismatch, EvalCounts
 from cosim.boards.reference import ReferenceControllerBoard, ReferenceEvaluatorBoard, checked_motion
@@ -219,10 +219,7 @@ SAMPLE_ENV = "EHW_HDL_SAMPLE"
 def sample_default() -> int:
     """Controllers per evaluation that the HDL evaluates when sampling (``EHW_HDL_SAMPLE``; 0:
     all of them, the default)."""
-    value = os.environ.get(SAMPLE_ENV, "0") or "0"
-    if not value.isdigit():
-        raise ValueError(f"{SAMPLE_ENV} must be a count of controllers (0: all), got {value!r}")
-    return int(value)
+    return environ.read(SAMPLE_ENV, 0)
 
 
 def sample_indices(population: int, sample: int, call: int) -> np.ndarray:
@@ -319,7 +316,7 @@ def make_amaranth_boards(reflex: bool = True, check: bool = True, vcd: str | Non
     """A fresh (controller board, evaluator board) pair sharing one simulated SystemTop
     (``sample``: see :class:`HDLEvaluatorBoard`; default ``EHW_HDL_SAMPLE`` or 0, all).
     ``vcd``: dump the simulation there (``WAVES=1``: build/sim/amaranth_system_top.vcd)."""
-    if vcd is None and os.environ.get("WAVES", "0") not in ("", "0"):
+    if vcd is None and environ.read("WAVES", False):
         from cosim.boards.cocotb_run import SIM_BUILD
 
         SIM_BUILD.mkdir(parents=True, exist_ok=True)

@@ -26,8 +26,8 @@ Each board call is a coroutine of ``hdl.system_top.SystemHost`` run in the simul
 
 from __future__ import annotations
 
-import os
 
+from base import environ
 from cosim.boards.amaranth_backend import BoardLog, HDLControllerBoard, HDLEvaluatorBoard
 from cosim.boards.registry import register_backend
 from ga.motions import DEFAULT_DISTANCE_RULE
@@ -51,10 +51,10 @@ class CocotbSystem:
 
         self.dut = dut
         if clock_inside is None:
-            clock_inside = os.environ.get(CLOCK_INSIDE_ENV, "0") not in ("", "0")
+            clock_inside = environ.read(CLOCK_INSIDE_ENV, False)
         self.clock_inside = clock_inside
         self.pins = CocotbPins(dut)
-        self.host = SystemHost(self.pins, p_max=p_max or int(os.environ.get(P_MAX_ENV, P_MAX)))
+        self.host = SystemHost(self.pins, p_max=p_max or environ.read(P_MAX_ENV, P_MAX))
 
     async def start(self) -> None:
         """Clock (unless the top has its own), synchronous reset, then the evaluator's RAM sweep
@@ -91,7 +91,7 @@ def active_system() -> CocotbSystem:
     if _active_system is None:
         raise RuntimeError(
             "the cocotb backend runs the experiment inside the simulator: start it with "
-            "`python -m cosim.online.run --backend cocotb` or cosim.launch.cocotb_sim.run_online_cocotb(config, out)"
+            "`ehw sim --backend cocotb` or cosim.launch.cocotb_sim.run_online_cocotb(config, out)"
         )
     return _active_system
 

@@ -21,9 +21,9 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 from pathlib import Path
 
+from base import environ
 from cosim.boards.amaranth_learning import HDLLearningBoard
 from cosim.boards.cocotb_backend import active_system
 from ga.motions import DEFAULT_DISTANCE_RULE
@@ -70,8 +70,8 @@ def make_cocotb_learning_board(config, seed: int, population, reflex: bool = Tru
     from hdl.learning_system_top import LearnerHost
 
     system = active_system()
-    built = os.environ.get(CONFIG_ENV)
-    if built is None or HardwareGAConfig(**json.loads(built)) != config:
+    built = environ.read(CONFIG_ENV)
+    if built is None or HardwareGAConfig(**built) != config:
         raise RuntimeError(f"the Verilog under test is the engine for {built}, the run asks for "
                            f"{config.to_dict()}: launch it with cosim.launch.cocotb_sim.run_online_cocotb")
     return HDLLearningBoard(system.call, LearnerHost(system.pins), config, seed, population, reflex,

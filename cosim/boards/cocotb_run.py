@@ -28,11 +28,13 @@ from typing import Mapping, Sequence
 from cocotb_tools.check_results import get_results
 from cocotb_tools.runner import Verilator, get_runner
 
+from base import environ
+
 REPO_ROOT = Path(__file__).resolve().parents[2]
 SIM_BUILD = REPO_ROOT / "build" / "sim"
 
 
-SIMULATORS = ("icarus", "verilator")
+SIMULATORS = environ.SIMULATORS  # ("icarus", "verilator")
 SIM_ENV = "EHW_SIM"
 
 
@@ -41,10 +43,7 @@ class CocotbFailure(AssertionError):
 
 
 def simulator_default() -> str:
-    sim = os.environ.get(SIM_ENV) or "icarus"
-    if sim not in SIMULATORS:
-        raise ValueError(f"{SIM_ENV}={sim!r}: expected one of {', '.join(SIMULATORS)}")
-    return sim
+    return environ.read(SIM_ENV, "icarus")
 
 
 def require_iverilog() -> None:
@@ -139,7 +138,7 @@ def run_cocotb(
         build_args = ["-Wno-fatal", "-Wno-lint", "-Wno-style", "--timing" if timing else "--no-timing", "-O3"]
         runner = _TopPublicVerilator()
     if waves is None:
-        waves = os.environ.get("WAVES", "0") not in ("", "0")
+        waves = environ.read("WAVES", False)
     runner.build(
         sources=sources,
         hdl_toplevel=toplevel,

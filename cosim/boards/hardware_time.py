@@ -18,9 +18,9 @@ iCEBreaker's oscillator); ``EHW_CLOCK_HZ`` overrides both. Every figure says whi
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 
+from base import environ
 from ga.genome import N_ROWS
 
 CLOCK_HZ = 12e6  # the named default without an FPGA build: the iCEBreaker's oscillator
@@ -33,16 +33,10 @@ def measured_clock(target: str | None = None, results: Path | str | None = None)
     """(Hz, where it comes from) for hardware times: ``EHW_CLOCK_HZ`` if set, else the measured
     ``fmax_mhz`` of ``target`` (default ``EHW_FPGA_TARGET`` or ulx3s-system) in ``results``
     (default results/fpga.json), else :data:`CLOCK_HZ`, the named default."""
-    value = os.environ.get("EHW_CLOCK_HZ", "")
-    if value:
-        try:
-            hz = float(value)
-        except ValueError:
-            raise ValueError(f"EHW_CLOCK_HZ must be a frequency in Hz, got {value!r}") from None
-        if not hz > 0:
-            raise ValueError(f"EHW_CLOCK_HZ must be positive, got {value!r}")
+    hz = environ.read("EHW_CLOCK_HZ")
+    if hz is not None:
         return hz, "EHW_CLOCK_HZ"
-    target = target or os.environ.get("EHW_FPGA_TARGET") or FPGA_TARGET
+    target = target or environ.read("EHW_FPGA_TARGET") or FPGA_TARGET
     path = Path(results) if results is not None else FPGA_RESULTS
     try:
         entry = json.loads(path.read_text())["targets"][target]

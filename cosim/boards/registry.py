@@ -6,7 +6,9 @@
   (``cosim.boards.cocotb_backend``, launched by ``cosim.launch.cocotb_sim``);
 - ``serial``: real boards behind the UART host link (``cosim.link.boards``);
 - ``uart``: the board top with its UART in Verilator, reached over a simulated serial line by
-  the same host code (``cosim.link.simulated``, launched by ``cosim.launch.uart_sim``).
+  the same host code (``cosim.link.simulated``, launched by ``cosim.launch.uart_sim``);
+- ``emulated``: the same host code over a Python model of the ehw-system board's protocol, no
+  HDL simulator (``cosim.link.emulated``): the fast line for ``--line-faults``.
 
 The same seed gives the same controllers, trajectory and counts in every backend; the HDL
 backends also count clock cycles. Backends are named here by module-name strings and imported
@@ -30,6 +32,7 @@ _BACKENDS = {
     "cocotb": ("cosim.boards.cocotb_backend", "cosim.launch.cocotb_sim:launch"),
     "serial": ("cosim.link.boards", None),  # real boards behind the UART host link
     "uart": ("cosim.link.simulated", "cosim.launch.uart_sim:launch"),  # the link top in Verilator
+    "emulated": ("cosim.link.emulated", None),  # the host link to a Python model of the ehw-system board
 }
 BACKENDS = tuple(_BACKENDS)
 

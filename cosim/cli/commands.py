@@ -16,13 +16,15 @@ from base.files import atomic_write_json
 from base.options import PROG, add_common, fill_help, option_keys, write_config
 from base.runs import open_run
 from cosim.cli.options import LINK_BACKENDS, RESULTS, add_hdl_options, hdl_environment, resolve_hdl_settings
+from cosim.cli.report import add_report_flag, report_at_end
+from cosim.online.config import OPTIONS
 from cosim.online.learning_phase import check_learning_backend
 
 # -- sim: the on-line experiment ------------------------------------------------------------------
 
-# The on-line command line lives with the experiment (cosim.cli.online: add_arguments,
-# config_from_args); the reporting in cosim.online.report; the cocotb launcher in
-# cosim.launch.cocotb_sim (imported when used: it brings cocotb's runner).
+# The on-line options: cosim.cli.online (add_arguments, config_from_args); the reporting:
+# cosim.online.report; the cocotb launcher: cosim.launch.cocotb_sim (imported when used: it brings
+# cocotb's runner).
 
 
 def _online_cli():
@@ -44,16 +46,17 @@ def _online_reporting():
     return online_report.write_results, online_report.summary_table
 
 
-SIM_DEST_OF = {"n_targets": "targets", "distance_rule": "distance"}
+# The OnlineConfig fields whose option has another name (config file key -> the option's dest).
+SIM_DEST_OF = {field: flag.lstrip("-") for field, flag in OPTIONS.items()}
 SIM_RUN_OPTIONS = {"backend": str, "simulator": str | None, "hdl_sample": int | None,
                    "waves": bool | None, "clock_hz": float | None, "port": str | None,
-                   "port2": str | None, "baud": float | None}
+                   "port2": str | None, "baud": float | None, "line_faults": str | None}
 
 
 def sim_parser(p) -> None:
     add_arguments, _ = _online_cli()
     add_arguments(p)
-    fill_help(p, "the run config's {dest} (cosim.online.run.OnlineConfig)")
+    fill_help(p, "the run config's {dest} (cosim.online.config.OnlineConfig)")
     for action in p._actions:  # the options are checked once more on the config they make
         if action.dest == "no_plots":
             action.help = "write no figures (an earlier run's figures are removed all the same)"
@@ -66,6 +69,7 @@ def sim_parser(p) -> None:
     add_common(p, out_help="the run folder (default: a fresh results/model_based/<date>-<time>-seed<S>/, "
                             "with results/model_based/latest pointing at it)")
     add_hdl_options(p)
+    add_report_flag(p)
 
 
 def _flag_name(field: str) -> str:
@@ -189,18 +193,22 @@ def cmd_sim(args, extras: dict, sub=None) -> int:
             run = make_run(config, args.backend, out, resume=args.resume, progress=progress)
             run.run()
             summary = write_results(run, out, plots=plots)
-            if args.backend == "serial":
+            if args.backend in ("serial", "emulated"):
                 from cosim.link.boards import write_link_summary
 
                 write_link_summary(run, out)
         run_dir.remove_stale()
         print(summary_table(summary))
         if args.backend in LINK_BACKENDS:  # link.json: what crossed the link
-            from cosim.link.boards import link_lines
+            from cosim.link.boards import fault_summary, link_lines
 
-            print("\n".join(link_lines(json.loads((out / "link.json").read_text()))))
+            link = json.loads((out / "link.json").read_text())
+            print("\n".join(link_lines(link)))
+            if fault_summary(link) is not None:  # the summary counts the line's faults too
+                atomic_write_json(out / "summary.json", {**summary, "line_faults": fault_summary(link)})
         figures = sorted(out.glob("*.png"))
         print(f"wrote {out / 'summary.json'}" + (f" and {len(figures)} figures" if figures else ""))
+        report_at_end(args, out, plots)
     return 0
 
 
@@ -213,6 +221,7 @@ def offline_parser(p) -> None:
     offline.add_arguments(p)
     add_common(p, out_help="the run folder (default: a fresh results/model_free/<date>-<time>-seed<S>/, "
                             "with results/model_free/latest pointing at it)")
+    add_report_flag(p)
 
 
 def cmd_offline(args, extras: dict, sub=None) -> int:
@@ -243,6 +252,7 @@ def cmd_offline(args, extras: dict, sub=None) -> int:
         write_config(out, {k: (str(v) if isinstance(v, Path) else v) for k, v in options.items()}, {}, "offline")
         run_offline_from_args(args, out)
         run_dir.remove_stale()
+        report_at_end(args, out, not args.no_plots)
     return 0
 
 

@@ -1,6 +1,6 @@
 """``ehw``: the project's one command line (a console script, ``pyproject.toml``).
 
-    ehw sim       [--backend reference|amaranth|cocotb] [--seed 1] [--out DIR] [--resume] ...
+    ehw sim       [--backend reference|amaranth|cocotb|serial|uart|emulated] [--seed 1] [--out DIR] [--resume] ...
     ehw offline   [--seed 1] [--generations-cap G] [--workers W] [--out DIR] [--resume] ...
     ehw compare   [--seeds 5] [--first-seed 1] [--methods ...] [--jobs 2] [--out DIR] [--resume] ...
     ehw verilog   [--out build/verilog] [BLOCK ...]
@@ -8,6 +8,8 @@
     ehw bench     [MODULE ...] [--out DIR] [--figures results/bench.json]
     ehw arena     [--arena NAME|FILE ...] [--out DIR]
     ehw baseline  [--arena default] [--seeds 5] [--out DIR]
+    ehw replay    [RUN_DIR] [--fps 15] [--max-seconds 30] [--format auto|mp4|gif]   (cosim.report)
+    ehw report    [RUN_DIR] [--fps 15] [--max-seconds 30]      (report.html; also after sim/offline/compare)
 
 One parser module: each subcommand takes its module's own argument definitions (``add_arguments``
 of ``cosim.offline.run``, ``sim_world.render``, ...; for ``sim`` those of the on-line experiment),
@@ -42,20 +44,15 @@ import sys
 from pathlib import Path
 from typing import Sequence
 
+from base import environ
 from base.config_file import field_types
 from base.errors import ArgumentParser, UserError, run_main
-from base.options import (
-    PROG,
-    HelpFormatter,
-    add_common,
-    apply_config_file,
-    option_keys,
-    resume_config,
-    write_config,
-)
+from base.options import PROG, HelpFormatter, add_common, apply_config_file, option_keys, resume_config, write_config
 from base.runs import RunLock, open_run
 from cosim.cli.commands import SIM_DEST_OF, SIM_RUN_OPTIONS, cmd_offline, cmd_sim, offline_parser, sim_parser
-from cosim.cli.options import RESULTS, resolve_hdl_settings
+from cosim.cli.limit import cmd_limit, limit_parser
+from cosim.cli.options import RESULTS
+from cosim.cli.report import add_report_flag, cmd_replay, cmd_report, replay_parser, report_at_end, report_parser
 from cosim.cli.tune import cmd_tune, tune_parser
 from cosim.compare.options import COMPARE_ROOT
 
@@ -83,17 +80,35 @@ def _record_options(folder: Path, args, sub, what: str) -> None:
     write_config(folder, {k: (str(v) if isinstance(v, Path) else v) for k, v in options.items()}, {}, what)
 
 
+def _in_run_folder(run, args, sub, what: str, markers: tuple, label: str | None = None) -> int:
+    """``run(args)`` with ``args.out`` a run folder of ``results/<what>/`` (its options recorded,
+    the files of an earlier run it replaces removed)."""
+    with open_run(args.out, RESULTS / what, force=args.force, checkpoint=None, markers=markers,
+                  label=label) as run_dir:
+        _record_options(run_dir.path, args, sub, what)
+        args.out = run_dir.path
+        run(args)
+        run_dir.remove_stale()
+    return 0
+
+
 def _compare_parser(p) -> None:
     from cosim.compare.options import add_arguments
 
-    add_arguments(p)  # the one option table (python -m cosim.compare.run uses it too)
+    add_arguments(p)
     add_common(p, seed=False, resume=False, force=False, quiet=False)  # --config
+    add_report_flag(p)
 
 
 def cmd_compare(args, extras: dict, sub=None) -> int:
     from cosim.compare import run as compare
 
-    return compare.run_from_args(args)
+    status = compare.run_from_args(args)
+    if status == 0 and args.render is None:  # the folder it wrote: --out, or the one 'latest' points at
+        folder = Path(args.out) if args.out is not None else COMPARE_ROOT / "latest"
+        with RunLock(folder).acquire():
+            report_at_end(args, folder)
+    return status
 
 
 def _verilog_parser(p) -> None:
@@ -124,13 +139,7 @@ def cmd_arena(args, extras: dict, sub=None) -> int:
 
     for name in args.arena or ARENAS:  # every file checked before anything is written
         load_arena(name)
-    with open_run(args.out, RESULTS / "arena", force=args.force, checkpoint=None,
-                  markers=("arena_*.png",)) as run_dir:
-        _record_options(run_dir.path, args, sub, "arena")
-        args.out = run_dir.path
-        render.run_from_args(args)
-        run_dir.remove_stale()
-    return 0
+    return _in_run_folder(render.run_from_args, args, sub, "arena", ("arena_*.png",))
 
 
 def _baseline_parser(p) -> None:
@@ -157,13 +166,7 @@ def cmd_baseline(args, extras: dict, sub=None) -> int:
     if args.tune:  # the search prints its table and writes no file
         return baseline.run_from_args(args) or 0
     label = f"seeds{args.first_seed}-{args.first_seed + args.seeds - 1}" if args.seeds else "noise-free"
-    with open_run(args.out, RESULTS / "baseline", force=args.force, checkpoint=None,
-                  markers=("baseline.json",), label=label) as run_dir:
-        _record_options(run_dir.path, args, sub, "baseline")
-        args.out = run_dir.path
-        baseline.run_from_args(args)
-        run_dir.remove_stale()
-    return 0
+    return _in_run_folder(baseline.run_from_args, args, sub, "baseline", ("baseline.json",), label)
 
 
 # Subcommands whose module parses its own options (by module name: the command line imports none
@@ -196,6 +199,9 @@ COMMANDS = {
     "verilog": (_verilog_parser, cmd_verilog, "the Verilog of the EHW blocks -> build/verilog/"),
     "arena": (_arena_parser, cmd_arena, "render arenas -> results/arena/<date>-<time>/arena_<name>.png"),
     "baseline": (_baseline_parser, cmd_baseline, "the hand-written reactive baseline through the 64 legs -> results/baseline/<date>-<time>-seeds<A>-<B>/"),
+    "replay": (replay_parser, cmd_replay, "a lifetime as a video (the arena, the robot, its IR bits, trail, crashes, targets, phases) -> RUN_DIR/replay.mp4"),
+    "report": (report_parser, cmd_report, "one self-contained report.html of a run folder (summary, replay, curves, world model, controller, config)"),
+    "limit": (limit_parser, cmd_limit, "the fewest interactions any controller could need (omniscient planner) -> results/limit/<date>-<time>/"),
     "tune": (tune_parser, cmd_tune, "equal-effort tuning of one learning method (Optuna TPE) -> results/tune/<method>[-<shaping>].db/.json"),
 }
 _SUBPARSERS: dict[str, argparse.ArgumentParser] = {}
@@ -232,6 +238,7 @@ def _main(argv: Sequence[str] | None) -> int:
         # The module parses its own options (argparse cannot hand on "--x ..." as a remainder).
         return commands[argv[0]][1](argparse.Namespace(passed=argv[1:]), {})
     args = parser.parse_args(argv)
+    environ.check_all()  # every variable the project reads, before any work (base.environ)
     if args.command is None:
         parser.print_help(sys.stderr)
         return 2

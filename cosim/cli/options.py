@@ -10,6 +10,7 @@ import math
 import os
 from pathlib import Path
 
+from base import environ
 from base.errors import UserError
 
 RESULTS = Path("results")
@@ -18,38 +19,9 @@ RESULTS = Path("results")
 # -- settings from options, the environment as a fallback -------------------------------------------
 
 
-def _from_env(name: str, parse, what: str):
-    """``parse(os.environ[name])``, None when unset or empty; a bad value is a UserError."""
-    raw = os.environ.get(name, "")
-    if raw == "":
-        return None
-    try:
-        return parse(raw)
-    except (ValueError, TypeError):
-        raise UserError(f"environment variable {name}={raw!r}: {what}") from None
-
-
-def _positive_hz(text) -> float:
-    hz = float(text)
-    if not (math.isfinite(hz) and hz > 0):
-        raise ValueError(hz)
-    return hz
-
-
-def _count(text) -> int:
-    value = int(str(text), 10)
-    if value < 0:
-        raise ValueError(value)
-    return value
-
-
-def _flag(text) -> bool:
-    value = str(text).strip().lower()
-    if value in ("1", "true", "yes", "on"):
-        return True
-    if value in ("", "0", "false", "no", "off"):
-        return False
-    raise ValueError(value)
+def _from_env(name: str):
+    """The typed value of variable ``name`` (``base.environ``), None when unset or empty."""
+    return environ.read(name)
 
 
 def resolve_hdl_settings(args) -> dict:
@@ -57,49 +29,48 @@ def resolve_hdl_settings(args) -> dict:
     ``hdl_sample``, ``waves``, ``clock_hz`` (see :func:`hdl_environment`)."""
     from cosim.boards.cocotb_run import SIMULATORS
 
-    simulator = getattr(args, "simulator", None) or _from_env("EHW_SIM", str, "") or "verilator"
+    simulator = getattr(args, "simulator", None) or _from_env("EHW_SIM") or "verilator"
     if simulator not in SIMULATORS:
         source = "--simulator" if getattr(args, "simulator", None) else "environment variable EHW_SIM"
         raise UserError(f"{source}: {simulator!r} is not a simulator; choose one of {', '.join(SIMULATORS)}")
     sample = getattr(args, "hdl_sample", None)
     if sample is None:
-        sample = _from_env("EHW_HDL_SAMPLE", _count, "a count of controllers (0: all)")
+        sample = _from_env("EHW_HDL_SAMPLE")
     if sample is None:  # all of them on cocotb+Verilator, a spot check of 1 where all take hours
         sample = 0 if (args.backend == "cocotb" and simulator == "verilator") else 1
     if sample < 0:
         raise UserError(f"--hdl-sample must be a count of controllers (0: all), got {sample!r}")
     waves = getattr(args, "waves", None)
     if waves is None:
-        waves = bool(_from_env("WAVES", _flag, "0 or 1"))
+        waves = bool(_from_env("WAVES"))
     clock = getattr(args, "clock_hz", None)
     if clock is not None and not (math.isfinite(clock) and clock > 0):
         raise UserError(f"--clock-hz must be a positive frequency in Hz, got {clock!r}")
     if clock is None:  # None: the measured Fmax of results/fpga.json, else the named default
-        clock = _from_env("EHW_CLOCK_HZ", _positive_hz, "not a positive frequency in Hz")
-    p_max = _from_env("EHW_SYSTEM_P_MAX", _count, "a population RAM depth")
-    if p_max == 0:
-        raise UserError("environment variable EHW_SYSTEM_P_MAX=0: a population RAM depth must be positive")
+        clock = _from_env("EHW_CLOCK_HZ")
+    p_max = _from_env("EHW_SYSTEM_P_MAX")
     return {"simulator": simulator, "hdl_sample": sample, "waves": waves,
             "clock_hz": None if clock is None else float(clock), **_link_settings(args)}
 
 
-LINK_BACKENDS = ("serial", "uart")  # the backends behind the UART host link (docs/host_link.md)
+LINK_BACKENDS = ("serial", "uart", "emulated")  # the backends behind the UART host link (docs/host_link.md)
 
 
 def _link_settings(args) -> dict:
     """``port``, ``port2`` (``--backend serial``) and ``baud`` (serial, uart): option >
     ``EHW_PORT`` / ``EHW_PORT2`` / ``EHW_BAUD`` > None, checked against the backend and ``--ga``."""
     backend, hardware = args.backend, getattr(args, "ga", "host") == "hardware"
-    for name, backends in (("port", ("serial",)), ("port2", ("serial",)), ("baud", LINK_BACKENDS)):
+    for name, backends in (("port", ("serial",)), ("port2", ("serial",)), ("baud", ("serial", "uart")),
+                           ("line_faults", LINK_BACKENDS)):
         if getattr(args, name, None) is not None and backend not in backends:
-            raise UserError(f"--{name} is for --backend {' or '.join(backends)}, not {backend}")
-    port = getattr(args, "port", None) or _from_env("EHW_PORT", str, "")
-    port2 = getattr(args, "port2", None) or _from_env("EHW_PORT2", str, "")
+            raise UserError(f"--{name.replace('_', '-')} is for --backend {' or '.join(backends)}, not {backend}")
+    port = getattr(args, "port", None) or _from_env("EHW_PORT")
+    port2 = getattr(args, "port2", None) or _from_env("EHW_PORT2")
     baud = getattr(args, "baud", None)
     if baud is not None and not (math.isfinite(baud) and baud > 0):
         raise UserError(f"--baud must be a positive baud rate, got {baud!r}")
     if baud is None:
-        baud = _from_env("EHW_BAUD", _positive_hz, "not a positive baud rate")
+        baud = _from_env("EHW_BAUD")
     if backend == "serial":
         board = "one ulx3s-learner board" if hardware else "a ULX3S (ulx3s-system) or, with --port2, two iCEBreakers"
         if not port:
@@ -109,7 +80,26 @@ def _link_settings(args) -> dict:
             raise UserError(f"--ga hardware on --backend serial is one ulx3s-learner board on --port; "
                             f"--port2 {port2!r} (EHW_PORT2) is the host GA's second iCEBreaker")
     return {"port": port if backend == "serial" else None, "port2": port2 if backend == "serial" else None,
-            "baud": None if baud is None or backend not in LINK_BACKENDS else float(baud)}
+            "baud": None if baud is None or backend not in ("serial", "uart") else float(baud),
+            "line_faults": _line_faults(args, backend, hardware)}
+
+
+def _line_faults(args, backend: str, hardware: bool) -> str | None:
+    """``--line-faults`` (or ``EHW_LINE_FAULTS``) checked, as its canonical text; None: a clean line."""
+    from cosim.link.faults import parse_faults
+
+    given = getattr(args, "line_faults", None)
+    text = given if given is not None else _from_env("EHW_LINE_FAULTS")
+    faults = parse_faults(text, "--line-faults" if given is not None else "environment variable EHW_LINE_FAULTS")
+    if faults is None or backend not in LINK_BACKENDS:
+        return None
+    if faults.reset and backend == "serial":
+        raise UserError(f"--line-faults reset={faults.reset}: the host cannot reset a real board; power-cycle "
+                        "or re-plug it during the run instead (the host recovers the same way)")
+    if faults.reset and hardware:
+        raise UserError(f"--line-faults reset={faults.reset}: with --ga hardware the host keeps no mirror "
+                        "of the learning engine's population to restore after a reset (use --ga host)")
+    return faults.to_text() or None
 
 
 @contextlib.contextmanager
@@ -120,6 +110,7 @@ def hdl_environment(settings: dict):
               "WAVES": "1" if settings["waves"] else "0"}
     if settings["clock_hz"] is not None:  # else cosim.boards.hardware_time.measured_clock decides
         values["EHW_CLOCK_HZ"] = repr(settings["clock_hz"])
+    values["EHW_LINE_FAULTS"] = settings.get("line_faults") or ""  # "": a clean line, whatever the caller's
     for key, name in (("port", "EHW_PORT"), ("port2", "EHW_PORT2"), ("baud", "EHW_BAUD")):
         if settings.get(key) is not None:  # the link backends read them there (cosim.link.boards)
             values[name] = settings[key] if key != "baud" else repr(settings[key])
@@ -154,6 +145,11 @@ def add_hdl_options(p) -> None:
     p.add_argument("--baud", type=float, default=None, metavar="BAUD",
                    help="--backend serial or uart: the link's baud (default: $EHW_BAUD, else 115200 on "
                         "serial and the simulated clock / 4 on uart)")
+    p.add_argument("--line-faults", default=None, metavar="flip=P,drop=P,silence=P,reset=N,seed=S",
+                   help="--backend serial, uart or emulated: seeded faults on the link's line (bit flips "
+                        "and dropped bytes per byte, silent replies per frame, N board resets, dead=K: "
+                        "the line dies at frame K); the host detects and recovers each, the summary "
+                        "counts them (cosim.link.faults; default: $EHW_LINE_FAULTS, else none)")
     p.add_argument("--clock-hz", type=float, default=None, metavar="HZ",
                    help="FPGA clock of the hardware-time figures (default: $EHW_CLOCK_HZ, else the "
                         "measured Fmax in results/fpga.json, else 12e6, the iCEBreaker's)")

@@ -1,6 +1,6 @@
-"""The options of the comparison, defined once: ``ehw compare`` (``cosim.cli.main``, which adds
-``--config``) and ``python -m cosim.compare.run`` both put :func:`add_arguments` on their parser and
-run :func:`check_args` before any work (one ``error:`` line naming the option for a bad value).
+"""The options of the comparison: ``ehw compare`` (``cosim.cli.main``, which adds ``--config``)
+puts :func:`add_arguments` on its parser and runs :func:`check_args` before any work (one
+``error:`` line naming the option for a bad value).
 
 Where a comparison's files go (``base.runs``): its tables (``compare.json``, ``compare.md``,
 ``compare.png``) and its ``config.toml`` in a fresh run folder
@@ -50,13 +50,16 @@ def add_arguments(p: argparse.ArgumentParser) -> argparse.ArgumentParser:
                    help="off-line generation cap (default: cosim.offline.run's)")
     p.add_argument("--distance", choices=("covered", "forward"), default="forward",
                    help="dist[a] of the on-line fitness: forward = SPEC section 7, backward steps "
-                        "cover 0; covered = the paper's first reading (docs/online.md, round 5)")
+                        "cover 0; covered = the paper's first reading (docs/research-log.md, on-line round 5)")
     p.add_argument("--online", action="append", default=[], metavar="KEY=VALUE",
                    help="an OnlineConfig field for the on-line runs, e.g. loop_cycles=0 (repeatable)")
     p.add_argument("--blind-bit", type=int, default=None, metavar="B",
                    help="adaptation (paper 5.2): blind IR bit B (0..5) of the on-line run ...")
     p.add_argument("--blind-after-target", type=int, default=None, metavar="T",
                    help="... after target T, and count the interactions of the next 8 targets")
+    p.add_argument("--planner-limit", action=argparse.BooleanOptionalAction, default=True,
+                   help="plan the arena's limit (the omniscient planner of 'ehw limit', cached) and show every "
+                        "method's median as a multiple of it")
     p.add_argument("--jobs", type=int, default=2, metavar="J", help="worker processes")
     p.add_argument("--cluster", default=None, metavar="local|ADDRESS",
                    help="run the lifetimes on Dask: 'local' starts a LocalCluster of --jobs workers on "

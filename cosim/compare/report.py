@@ -80,6 +80,21 @@ def build_report(results: dict, arena: str, seeds: list[int]) -> dict:
     return report
 
 
+def add_limit(report: dict, limit: dict | None) -> dict:
+    """Put the arena's limit (``cosim.compare.limit.course_limit``) into ``report`` and, per
+    method, its median interactions as a multiple of it (``median_over_limit``)."""
+    report["limit"] = limit
+    for stats in report["methods"].values():
+        med = stats["interactions"]["median"]
+        stats["median_over_limit"] = med / limit["interactions"] if limit and med is not None else None
+    return report
+
+
+def _over_limit(stats: dict) -> str:
+    ratio = stats.get("median_over_limit")
+    return "-" if ratio is None else f"{ratio:.1f}"
+
+
 def _row_order(rows) -> list[str]:
     order = {m: i for i, m in enumerate(METHODS)}
     return sorted(rows, key=lambda r: (order.get(r.partition("/")[0], 99), r))
@@ -95,16 +110,21 @@ def _seed_text(seeds: list[int]) -> str:
 def markdown(report: dict) -> str:
     rows = _row_order(report["methods"])
     seeds = report["seeds"]
+    limit = report.get("limit")
     lines = [f"# Every method on the same task ({report['arena']} arena, seeds {_seed_text(seeds)})", "",
-             "| method | reached 64 | interactions to 64: median (range) | crashes | world states | "
-             "transitions | generations | CPU s per lifetime |", "|---|---|---|---|---|---|---|---|"]
+             "| method | reached 64 | interactions to 64: median (range) | median / limit | crashes | world states | "
+             "transitions | generations | CPU s per lifetime |", "|---|---|---|---|---|---|---|---|---|"]
     for row in rows:
         st = report["methods"][row]
-        cells = [f"{st['reached_64']}/{st['seeds_run']}", _fmt(st["interactions"]), _fmt(st["crashes"]),
-                 _fmt(st["world_states"]), _fmt(st["transitions"]), _fmt(st["generations"]), _fmt(st["cpu_s"])]
+        cells = [f"{st['reached_64']}/{st['seeds_run']}", _fmt(st["interactions"]), _over_limit(st),
+                 _fmt(st["crashes"]), _fmt(st["world_states"]), _fmt(st["transitions"]), _fmt(st["generations"]),
+                 _fmt(st["cpu_s"])]
         lines.append(f"| {display_name(row)} | " + " | ".join(cells) + " |")
+    if limit:
+        lines.append(f"| the limit (omniscient planner, noise-free) | yes | {limit['interactions']:,} | 1.0 | 0 | - | - "
+                     "| - | - |")
     for name, paper in (("paper, on-line", PAPER["online"]), ("paper, off-line", PAPER["offline"])):
-        lines.append(f"| {name} | yes | {paper['interactions']:,} | - | {paper['world_states']} | "
+        lines.append(f"| {name} | yes | {paper['interactions']:,} | - | - | {paper['world_states']} | "
                      f"{paper['transitions']} | {paper['generations']} | - |")
     fewer = [f"{display_name(r)}: {report['methods'][r]['seeds_run']}" for r in rows
              if report["methods"][r]["seeds_run"] < len(seeds)]
@@ -125,9 +145,14 @@ def markdown(report: dict) -> str:
               "'unshaped': target, crash and step rewards only. Off-line: interactions of every "
               "controller the GA evaluated; its crashes end those evaluations and are not counted. "
               "CPU seconds: the lifetime's worker process."]
+    if limit:
+        lines += ["", f"The limit: the fewest interactions any controller could need on this course, from an "
+                  f"omniscient planner that knows the arena, the ball and the pose exactly and searches the 8 "
+                  f"motions for the shortest crash-free path of each leg (noise-free; cell {limit['cell_mm']:g} mm; "
+                  "`ehw limit`, docs/limit.md). 'median / limit': each method's median as a multiple of it."]
     if report.get("online_distance_rule", "forward") != "forward":
         lines += ["", f"On-line runs with the option dist[a] = {report['online_distance_rule']} (the "
-                  "paper's first reading, not SPEC section 7; docs/online.md, round 5)."]
+                  "paper's first reading, not SPEC section 7; docs/research-log.md, on-line round 5)."]
     if report.get("online_options"):
         lines += ["", "On-line options: " + ", ".join(f"`{k}={v}`" for k, v in report["online_options"].items())
                   + " (defaults otherwise)."]
@@ -184,8 +209,14 @@ def write_plot(report: dict, path: Path) -> Path:
         style = "--" if row.endswith("/unshaped") else "-"
         ax.fill_between(grid, ys.min(axis=0), ys.max(axis=0), color=colour, alpha=0.12, linewidth=0)
         med = report["methods"][row]["interactions"]["median"]
-        label = f"{display_name(row)} (median {med:,.0f})" if med is not None else display_name(row)
+        ratio = report["methods"][row].get("median_over_limit")
+        label = display_name(row) if med is None else f"{display_name(row)} (median {med:,.0f}" + \
+            (f", {ratio:.1f}x the limit)" if ratio is not None else ")")
         ax.plot(grid, np.median(ys, axis=0), color=colour, linestyle=style, label=label, linewidth=1.6)
+    limit = report.get("limit")
+    if limit:  # the planner's targets against its interactions: below it no controller can be
+        ax.plot(grid, _curve(np.cumsum(limit["per_leg"]).tolist(), grid, limit["interactions"]), color="tab:red",
+                linestyle="-.", linewidth=1.2, label=f"the limit (omniscient planner, {limit['interactions']:,})")
     ax.axvline(PAPER["online"]["interactions"], color="k", linestyle=":", linewidth=1)
     ax.text(PAPER["online"]["interactions"], 1, " paper on-line\n 12,280", fontsize=7, va="bottom")
     ax.set_xscale("log")

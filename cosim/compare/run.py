@@ -5,8 +5,6 @@
                 [--arena default] [--out DIR] [--resume | --force] [--fresh] [--quiet]
                 [--blind-bit B --blind-after-target T] [--config FILE]
 
-(``python -m cosim.compare.run``: the same options, :mod:`cosim.compare.options`, without --config.)
-
 Methods (``--methods``, default: all but the optional deep-RL ones):
 
 * ``online``: the on-line model-based method (``cosim.online.run``; ``--online KEY=VALUE`` options).
@@ -44,7 +42,6 @@ same seed drives the same noisy, blinded world from the same relocation pose for
 
 from __future__ import annotations
 
-import argparse
 import json
 import time
 from pathlib import Path
@@ -75,6 +72,7 @@ from cosim.compare.report import (  # noqa: F401  (re-exported: the names of cos
     SHAPINGS,
     TABULAR,
     _seed_text,
+    add_limit,
     build_report,
     display_name,
     markdown,
@@ -246,14 +244,6 @@ def fixed_controller_adaptation(genome_hex: str, arena: str, seed: int, bit: int
 # -- command line (the options: cosim.compare.options; ``ehw compare`` adds --config) ------------
 
 
-def build_parser() -> argparse.ArgumentParser:
-    from base.errors import ArgumentParser
-    from base.options import HelpFormatter
-
-    return add_arguments(ArgumentParser(prog="python -m cosim.compare.run", description=__doc__.split("\n")[0],
-                                        formatter_class=HelpFormatter))
-
-
 def render_only(path: Path) -> int:
     """``--render JSON``: rewrite compare.md and compare.png beside it (under its folder's lock)."""
     from base.runs import RunLock
@@ -350,6 +340,10 @@ def _compare(args, folder: Path) -> dict:
                 if s in results.get("offline", {}) and path.exists():
                     results["offline"][s]["best_genome"] = json.loads(path.read_text()).get("best_genome")
     report = build_report(results, args.arena, seeds)
+    if getattr(args, "planner_limit", False):
+        from cosim.compare.limit import course_limit
+
+        add_limit(report, course_limit(args.arena, cache))
     report["online_distance_rule"] = args.distance
     report["online_options"] = online
     from peers.deep import TUNED as DEEP_TUNED
@@ -386,24 +380,3 @@ def _compare(args, folder: Path) -> dict:
     write_plot(report, folder / "compare.png")
     print(text)
     return report
-
-
-def main(argv=None) -> int:
-    """``python -m cosim.compare.run``: the same options and checks as ``ehw compare`` (no --config)."""
-    from base.errors import run_main
-    from base.options import apply_config_file, resume_config
-
-    def run(argv):
-        parser = build_parser()
-        args = parser.parse_args(argv)
-        stored = resume_config(args, COMPARE_ROOT) if not args.adaptation_only else None
-        if stored is not None:  # a resumed comparison keeps its options (flags over them)
-            apply_config_file(parser, stored)
-            args = parser.parse_args(argv)
-        return run_from_args(args)
-
-    return run_main(run, argv)
-
-
-if __name__ == "__main__":  # ``ehw compare`` is the same with --config
-    raise SystemExit(main())

@@ -1,8 +1,8 @@
 """The launcher of the cocotb backend: build the system top's Verilog and run the lifetime in it.
 
-    EHW_SIM=verilator python -m cosim.online.run --backend cocotb --seed 1   (make sim BACKEND=cocotb [SIM=icarus] [WAVES=1])
+    ehw sim --backend cocotb [--simulator verilator|icarus] --seed 1   (make sim BACKEND=cocotb [SIM=icarus] [WAVES=1])
 
-The process that is started (``python -m cosim.online.run``) only launches the simulation
+The process of ``ehw sim`` only launches the simulation
 (:func:`run_online_cocotb`): it writes ``system_top.v`` (``hdl.system_top.SystemTop``: controller
 EHW + evaluator EHW + population streamer), builds it with Icarus or Verilator (``EHW_SIM``)
 through ``cosim.boards.cocotb_run.run_cocotb`` and runs the cocotb test of ``cosim.launch.cocotb_test``,
@@ -17,9 +17,9 @@ the same table as the other backends. On Verilator the system top's toplevel is
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 
+from base import environ
 from cosim.boards.amaranth_backend import SAMPLE_ENV
 from cosim.boards.cocotb_backend import CLOCK_INSIDE_ENV, CLOCK_PERIOD_NS
 from cosim.boards.cocotb_run import SIM_BUILD, icarus_time_zero_fix, simulator_default
@@ -123,7 +123,7 @@ def run_online_cocotb(config, out: Path | str, *, resume: bool = False, plots: b
 def launch(config, args) -> int:
     """``ehw sim --backend cocotb ...``: launch the simulation, print its summary."""
     simulator = simulator_default()
-    print(f"cocotb backend on {simulator} ({'EHW_SIM' if os.environ.get('EHW_SIM') else 'default'})")
+    print(f"cocotb backend on {simulator} ({'EHW_SIM' if environ.raw('EHW_SIM') else 'default'})")
     summary = run_online_cocotb(config, args.out, resume=args.resume, plots=not args.no_plots,
                                 progress=not args.no_progress, simulator=simulator)
     from cosim.online.report import summary_table

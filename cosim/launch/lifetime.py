@@ -12,8 +12,9 @@ backend (:func:`lifetime_in_simulator`), writing ``summary.json`` for the launch
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
+
+from base import environ
 
 CONFIG_ENV = "EHW_ONLINE_CONFIG"  # the OnlineConfig, JSON
 OPTIONS_ENV = "EHW_ONLINE_OPTIONS"  # out, resume, plots, progress and the backend's own, JSON
@@ -26,7 +27,7 @@ def launch_env(config, options: dict) -> dict[str, str]:
 
 def read_launch_env() -> tuple[dict, dict]:
     """(config fields, options) of :func:`launch_env`, inside the simulator."""
-    return json.loads(os.environ[CONFIG_ENV]), json.loads(os.environ[OPTIONS_ENV])
+    return environ.read(CONFIG_ENV), environ.read(OPTIONS_ENV)
 
 
 def lifetime_in_simulator(config: dict, options: dict, backend: str, *, checkpoint: bool = True):

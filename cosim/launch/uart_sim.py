@@ -25,9 +25,9 @@ link's timing (``cosim.link_bench`` measures it).
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 
+from base import environ
 from cosim.launch.lifetime import launch_env, prepare_out, print_summary, run_in_simulator
 from cosim.link.simulated import (
     LEARNER_TOPLEVEL,
@@ -47,8 +47,7 @@ def sim_baud_default() -> float:
     """``EHW_BAUD`` or the fastest baud of the simulated clock."""
     from hdl.uart import max_baud
 
-    value = os.environ.get(BAUD_ENV, "")
-    return float(value) if value else max_baud(SIM_CLK_HZ)
+    return environ.read(BAUD_ENV) or float(max_baud(SIM_CLK_HZ))
 
 
 def write_link_verilog(out_dir: Path, *, baud: float, p_max: int | None = None,
@@ -95,9 +94,7 @@ def prepare_uart_run(config, out: Path, *, baud: float, p_max: int | None = None
     from cosim.boards.cocotb_run import SIM_BUILD
     from hdl.system_top import P_MAX
 
-    line = os.environ.get(LINE_ENV) or "hdl"
-    if line not in LINES:
-        raise ValueError(f"{LINE_ENV}={line!r}: one of {LINES!r}")
+    line = environ.read(LINE_ENV, "hdl")
     env = {}
     if config.ga == "hardware":
         from cosim.online.learning_phase import hardware_ga_config

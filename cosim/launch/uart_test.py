@@ -21,11 +21,12 @@ async def online_experiment_uart(dut):
     from cocotb.task import bridge
 
     from cosim.link.boards import write_link_summary
+    from cosim.link.faults import faulty
 
     config, options = read_launch_env()
     line = await simulated.start_top(dut, options["baud"], options["host_timeout_s"], options["line"],
                                      options.get("toplevel", simulated.TOPLEVEL))
-    simulated.activate(line)
+    simulated.activate(faulty(line))  # --line-faults (EHW_LINE_FAULTS), if any
     try:
         run, _ = await bridge(lifetime_in_simulator)(config, options, "uart")
         write_link_summary(run, options["out"])

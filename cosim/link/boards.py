@@ -20,6 +20,12 @@ board: ``cosim.link.learning``.) The same board classes serve the ``uart`` backe
   answered NOT_LOADED (a damaged frame touched a single-buffered evaluator's rows) is loaded
   again, at most ``retries`` times.
 
+Each board keeps the host's mirror of what it wrote to the board (the controller's rows and
+reflex; the world model, rate codes and the population chunk in work) and restores it when the
+client detects a board reset (``LinkClient.on_reset``: docs/host_link.md, "board resets"); the
+mirror is updated before each request, so a request resent after a restore finds the board as
+the host expects it.
+
 With ``check`` (default) each board keeps the reference model beside it and raises
 :class:`LinkMismatch` at the first motion or count that differs: a board never returns a wrong
 result silently.
@@ -27,10 +33,9 @@ result silently.
 
 from __future__ import annotations
 
-import os
-
 import numpy as np
 
+from base import environ
 from cosim.boards.interfaces import BoardMismatch, EvalCounts
 from cosim.boards.reference import ReferenceControllerBoard, ReferenceEvaluatorBoard, checked_motion
 from cosim.boards.registry import register_backend
@@ -54,7 +59,14 @@ class LinkControllerBoard:
         self.client = client
         self.cycles = 0  # the board does not count: its time is the link's (client.stats)
         self.reference = ReferenceControllerBoard(reflex=reflex) if check else None
+        self.reflex, self.rows = bool(reflex), np.zeros(50, dtype=np.uint32)  # the host's mirror
         self.client.set_reflex(reflex)
+        self.client.on_reset.append(self.restore)
+
+    def restore(self) -> None:
+        """After a board reset: the reflex and the controller again (``LinkClient.on_reset``)."""
+        self.client.set_reflex(self.reflex)
+        self.client.load_controller(self.rows)
 
     def load(self, rows: np.ndarray) -> None:
         from ga.genome import validate_rows
@@ -62,11 +74,13 @@ class LinkControllerBoard:
         rows = validate_rows(rows)
         if rows.ndim != 1:
             raise ValueError(f"a controller board holds one genome (50,), got shape {rows.shape!r}")
+        self.rows = rows.copy()
         self.client.load_controller(rows)
         if self.reference is not None:
             self.reference.load(rows)
 
     def set_reflex(self, enabled: bool) -> None:
+        self.reflex = bool(enabled)
         self.client.set_reflex(enabled)
         if self.reference is not None:
             self.reference.set_reflex(enabled)
@@ -102,6 +116,8 @@ class LinkModelBoard:
         """One WRITE_RATE frame a code (``ga.fail_rates``; a learner top: every lane's rate RAM)."""
         changes = [tuple(map(int, change)) for change in changes]
         for state, motion, code in changes:
+            if getattr(self, "rates", None) is not None:
+                self.rates[state, motion] = code  # the mirror first: a restore then holds it
             self.client.write_rate(state, motion, code)
         if self.reference is not None:
             self.reference.write_rates(changes)
@@ -112,6 +128,7 @@ class LinkEvaluatorBoard(LinkModelBoard):
 
     def __init__(self, client: LinkClient, p_max: int, reflex: bool = True, check: bool = True,
                  distance_rule: str = DEFAULT_DISTANCE_RULE, retries: int = RETRIES):
+        from ga.fail_rates import prior_codes
         from ga.world_model import WorldModel
 
         if p_max < 1:
@@ -122,11 +139,40 @@ class LinkEvaluatorBoard(LinkModelBoard):
         self.model = WorldModel()  # the host's copy
         self.cycles = 0  # the evaluator's own cycles, from the EVALUATE replies
         self.reference = ReferenceEvaluatorBoard(reflex=reflex, distance_rule=distance_rule) if check else None
+        self.reflex, self.rates = bool(reflex), prior_codes()  # the host's mirror, with model
+        self._chunk_in_work = None  # (rows, evaluated): the population chunk on the board
         self.client.set_reflex(reflex)
         self.client.clear()  # every rate code at PRIOR_CODE too, as the reference's
+        self.client.on_reset.append(self.restore)
+
+    def restore(self) -> None:
+        """After a board reset (``LinkClient.on_reset``): the reflex, the world model entry by
+        entry (OBSERVE carries the entry; the states of S no entry names ride on the first
+        entry's ``reached``), the rate codes that are not the prior, and the chunk in work
+        (loaded again, and evaluated again if it was: EVALUATE is deterministic)."""
+        from ga.fail_rates import PRIOR_CODE
+
+        client, model = self.client, self.model
+        client.set_reflex(self.reflex)
+        client.clear()
+        entries = model.entries()
+        for state, motion, next_state, crash in entries:
+            client.observe(state, motion, next_state, bool(crash), reached=next_state)
+        named = set(entries[:, 0].tolist()) | set(entries[:, 2].tolist())
+        for extra in (int(s) for s in model.states if int(s) not in named):
+            state, motion, next_state, crash = entries[0]
+            client.observe(state, motion, next_state, bool(crash), reached=extra)
+        for state, motion in zip(*np.nonzero(self.rates != PRIOR_CODE)):
+            client.write_rate(int(state), int(motion), int(self.rates[state, motion]))
+        if self._chunk_in_work is not None:
+            rows, evaluated = self._chunk_in_work
+            client.load_genomes(rows)
+            if evaluated:
+                client.evaluate(len(rows))
 
     def _chunk(self, rows) -> tuple[list, int]:
         for attempt in range(self.retries + 1):
+            self._chunk_in_work = (rows, False)
             self.client.load_genomes(rows)
             try:
                 cycles = self.client.evaluate(len(rows))
@@ -135,7 +181,10 @@ class LinkEvaluatorBoard(LinkModelBoard):
                     raise LinkError(f"{self.client.port}: EVALUATE still NOT_LOADED after "
                                     f"{self.retries + 1} loads") from None
                 continue
-            return self.client.read_results(0, len(rows)), cycles
+            self._chunk_in_work = (rows, True)
+            results = self.client.read_results(0, len(rows))
+            self._chunk_in_work = None
+            return results, cycles
         raise AssertionError("unreachable")
 
     def evaluate(self, population: np.ndarray) -> EvalCounts:
@@ -200,26 +249,21 @@ def open_port(port: str, baud: float):
 
 
 def _baud_from_env() -> float:
-    value = os.environ.get(BAUD_ENV, "") or str(DEFAULT_BAUD)
-    try:
-        baud = float(value)
-    except ValueError:
-        raise LinkError(f"{BAUD_ENV} must be a baud rate, got {value!r}") from None
-    if not baud > 0:
-        raise LinkError(f"{BAUD_ENV} must be positive, got {value!r}")
-    return baud
+    return environ.read(BAUD_ENV, float(DEFAULT_BAUD))
 
 
 def make_serial_boards(reflex: bool = True, distance_rule: str = DEFAULT_DISTANCE_RULE, check: bool = True,
                        port: str | None = None, port2: str | None = None, baud: float | None = None):
     """The boards on serial ports (default ``EHW_PORT``, ``EHW_PORT2``, ``EHW_BAUD``)."""
-    port = port or os.environ.get(PORT_ENV)
-    port2 = port2 or os.environ.get(PORT2_ENV) or None
+    port = port or environ.read(PORT_ENV)
+    port2 = port2 or environ.read(PORT2_ENV)
     if not port:
         raise LinkError(f"the serial backend needs a port: make sim BACKEND=serial PORT=/dev/ttyUSB1 "
                         f"[PORT2=...] (or {PORT_ENV}=...)")
+    from cosim.link.faults import faulty
+
     baud = _baud_from_env() if baud is None else baud
-    clients = [LinkClient(open_port(p, baud)) for p in ([port] if port2 is None else [port, port2])]
+    clients = [LinkClient(faulty(open_port(p, baud))) for p in ([port] if port2 is None else [port, port2])]
     return boards_over(clients, reflex=reflex, check=check, distance_rule=distance_rule)
 
 
@@ -229,6 +273,8 @@ register_backend("serial", make_serial_boards)
 def link_summary(controller, evaluator) -> dict:
     """The link's figures of a run: bytes each way (in all and per command), requests, resends
     (per client; one entry, ``controller``, where both boards share it)."""
+    from cosim.link.faults import injected_faults
+
     out = {}
     for role, board in (("controller", controller), ("evaluator", evaluator)):
         stats = board.client.stats
@@ -239,6 +285,10 @@ def link_summary(controller, evaluator) -> dict:
                      "bytes_sent": stats.bytes_sent,
                      "bytes_received": stats.bytes_received, "requests": stats.requests,
                      "resends": stats.resends, "resend_reasons": dict(stats.reasons),
+                     "bytes_resent": stats.bytes_resent, "resets_detected": stats.resets,
+                     "restores": stats.restores, "restore_restarts": stats.restore_restarts,
+                     "restore_bytes": stats.restore_bytes,
+                     "faults_injected": injected_faults(board.client),
                      "by_command": {name: list(v) for name, v in sorted(stats.by_command.items())}}
         if controller.client is evaluator.client:
             break
@@ -257,6 +307,27 @@ def write_link_summary(run, out) -> dict:
 
 def link_lines(link: dict) -> list[str]:
     """One line per client of a ``link.json``: what crossed the link."""
-    return [f"link ({role}): {figures['bytes_sent']:,} bytes sent, {figures['bytes_received']:,} "
-            f"received, {figures['requests']:,} requests, {figures['resends']} resends"
-            for role, figures in link.items()]
+    lines = []
+    for role, figures in link.items():
+        lines.append(f"link ({role}): {figures['bytes_sent']:,} bytes sent, {figures['bytes_received']:,} "
+                     f"received, {figures['requests']:,} requests, {figures['resends']} resends")
+        injected = figures.get("faults_injected")
+        if injected:
+            lines.append(f"line faults ({role}): injected " + ", ".join(f"{k} {v}" for k, v in injected.items())
+                         + f"; detected {sum(figures['resend_reasons'].values())} failed tries, "
+                         f"{figures['resets_detected']} board resets; recovered by {figures['resends']} "
+                         f"resends ({figures['bytes_resent']:,} bytes) and {figures['restores']} restores "
+                         f"({figures.get('restore_restarts', 0)} started again, {figures['restore_bytes']:,} bytes)")
+    return lines
+
+
+def fault_summary(link: dict) -> dict | None:
+    """The line faults of a run's ``link.json`` for its summary: injected, detected, recovered."""
+    found = {role: f for role, f in link.items() if f.get("faults_injected")}
+    if not found:
+        return None
+    return {role: {"injected": f["faults_injected"], "failed_tries": dict(f["resend_reasons"]),
+                   "resets_detected": f["resets_detected"], "resends": f["resends"],
+                   "bytes_resent": f["bytes_resent"], "restores": f["restores"],
+                   "restore_restarts": f.get("restore_restarts", 0),
+                   "restore_bytes": f["restore_bytes"]} for role, f in found.items()}

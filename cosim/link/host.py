@@ -13,10 +13,18 @@ or says BAD_CRC / TRUNCATED (the board saw the request damaged) is sent again, a
 ``retries`` more times, then :class:`LinkError` names the port. The reply must echo the
 request's tag (a counter): a late reply to an earlier try is skipped, never taken for this one.
 Every command is idempotent, so a request executed twice (its first reply lost) does no harm.
+
+Board resets (a power glitch, a USB re-plug): the board then forgets its world model, rate codes,
+controller and population. The host counts the frames the board confirmed (OK replies); after a
+failed try, before the resend, it reads the board's own count (READ_COUNTERS): a count below the
+host's means the board restarted, and the host replays what the board held from its mirror (the
+``on_reset`` hooks of the boards over this client, ``cosim.link.boards``) before the resend.
 """
 
 from __future__ import annotations
 
+import binascii
+import functools
 from dataclasses import dataclass, field
 
 from amaranth.lib import data
@@ -52,6 +60,14 @@ from hdl.link_protocol import (
 RETRIES = 3  # resends of one request after an error reply or a timeout
 PIPELINE = 2  # LOAD_GENOME frames in flight (the board answers one while the next arrives)
 RETRY_STATUSES = (Status.BAD_CRC, Status.TRUNCATED)
+MAX_FRAME = 1 + HEADER_BYTES + 255 + CRC_BYTES  # the longest frame either way (262 bytes)
+NOISE_BYTES = 2 * MAX_FRAME  # bytes without SYNC before a try counts as failed: a line of noise
+LATE_REPLIES = 2 * PIPELINE + 2  # replies of other tags one try skips before it counts as failed
+RESTORES = 5  # restores of one board reset before LinkError (a reset during the restore starts it again)
+
+
+class _ResetDuringRestore(Exception):
+    """The board reset again while its state was being restored: start the restore again."""
 
 
 class LinkError(UserError):
@@ -63,19 +79,32 @@ class NotLoaded(LinkError):
     """EVALUATE answered NOT_LOADED: the genome must be loaded again first."""
 
 
+@functools.cache
+def _layout(layout) -> data.Layout:
+    return data.Layout.cast(layout)
+
+
+@functools.cache
 def _layout_bytes(layout) -> int:
-    return (data.Layout.cast(layout).size + 7) // 8
+    return (_layout(layout).size + 7) // 8
 
 
 def pack(layout, **fields) -> bytes:
     """``fields`` as the little-endian bytes of ``layout`` (the gateware's view of them)."""
-    value = data.Layout.cast(layout).const(fields).as_value().value
+    value = _layout(layout).const(fields).as_value().value
     return value.to_bytes(_layout_bytes(layout), "little")
 
 
 def unpack(layout, payload: bytes):
     """The fields of ``layout`` from its little-endian bytes (a ``data.Const``)."""
-    return data.Const(data.Layout.cast(layout), int.from_bytes(payload[:_layout_bytes(layout)], "little"))
+    return data.Const(_layout(layout), int.from_bytes(payload[:_layout_bytes(layout)], "little"))
+
+
+def crc16(body: bytes) -> int:
+    """``LINK_CRC.compute(body)`` at C speed: CRC-16/IBM-3740 is the CCITT CRC of the standard
+    library's ``binascii.crc_hqx`` with the catalogue entry's initial value 0xFFFF (no reflection,
+    no final XOR; tests/test_link_faults.py checks the two agree). 0 over a frame with its CRC."""
+    return binascii.crc_hqx(body, 0xFFFF)
 
 
 def encode_frame(command: Command, payload: bytes = b"", *, tag: int = 0, status: Status = Status.OK) -> bytes:
@@ -85,7 +114,7 @@ def encode_frame(command: Command, payload: bytes = b"", *, tag: int = 0, status
     header = pack(FrameHeader, command=Command(command).value, status=Status(status).value,
                   tag=tag, length=len(payload))
     body = header + bytes(payload)
-    return bytes([SYNC]) + body + LINK_CRC.compute(body).to_bytes(CRC_BYTES, "big")
+    return bytes([SYNC]) + body + crc16(body).to_bytes(CRC_BYTES, "big")
 
 
 def genome_payload(rows) -> bytes:
@@ -117,6 +146,11 @@ class LinkStats:
     bytes_received: int = 0
     requests: int = 0
     resends: int = 0
+    bytes_resent: int = 0  # request bytes sent again (resends; not the restores)
+    resets: int = 0  # board resets detected (its frame count went back)
+    restores: int = 0  # restores of the board's state from the host's mirror
+    restore_restarts: int = 0  # restores started again: the board reset while one ran
+    restore_bytes: int = 0  # bytes both ways of the restores
     reasons: dict = field(default_factory=dict)
     by_command: dict = field(default_factory=dict)
 
@@ -150,6 +184,9 @@ class LinkClient:
         self.stats = LinkStats()
         self.identity: Identity | None = None  # set by expect()
         self._tag = 0
+        self.on_reset: list = []  # callables that restore the board's state (cosim.link.boards)
+        self.confirmed = 0  # frames the board executed for sure: its count can only be higher
+        self._probing = self._restoring = False
 
     # -- framing ------------------------------------------------------------------------------
 
@@ -160,12 +197,14 @@ class LinkClient:
 
     def _read_reply(self):
         """(header, payload) of the next frame, or a reason string: timeout / bad CRC."""
-        while True:  # skip to SYNC
+        for _ in range(NOISE_BYTES):  # skip to SYNC (a line that only brings noise: a failed try)
             first = self._read_exactly(1)
             if first is None:
                 return "timeout"
             if first[0] == SYNC:
                 break
+        else:
+            return f"noise: no SYNC in {NOISE_BYTES} bytes"
         header_bytes = self._read_exactly(HEADER_BYTES)
         if header_bytes is None:
             return "timeout"
@@ -173,7 +212,7 @@ class LinkClient:
         rest = self._read_exactly(header.length + CRC_BYTES)
         if rest is None:
             return "timeout"
-        if LINK_CRC.compute(header_bytes + rest) != LINK_CRC.residue():
+        if crc16(header_bytes + rest) != LINK_CRC.residue():
             return "bad reply CRC"
         return header, rest[:header.length]
 
@@ -194,11 +233,13 @@ class LinkClient:
                 self.stats.resends += 1
                 self.stats.note(last)
                 self.stream.reset_input_buffer()
+                self._check_reset(command)
             self._tag = (self._tag + 1) % 256
             frame = encode_frame(command, payload, tag=self._tag)
             self.stream.write(frame)
             self.stats.bytes_sent += len(frame)
-            while True:
+            self.stats.bytes_resent += len(frame) if attempt else 0
+            for _ in range(LATE_REPLIES + 1):
                 reply = self._read_reply()
                 if isinstance(reply, str):
                     last = reply
@@ -224,9 +265,60 @@ class LinkClient:
                 if reply_length is not None and len(body) != reply_length:
                     raise LinkError(f"{self.port}: {command.name} replied {len(body)} bytes, "
                                     f"expected {reply_length}")
+                self.confirmed += 1
                 return body
+            else:
+                last = f"{LATE_REPLIES + 1} replies of other tags"
         raise LinkError(f"{self.port}: no good reply to {command.name} after {self.retries + 1} "
                         f"tries (last: {last}); is the board connected, configured and running?")
+
+    # -- board resets ---------------------------------------------------------------------------
+
+    def _check_reset(self, during: Command = Command.LOAD_GENOME) -> None:
+        """After a failed try of ``during``: did the board restart? (its frame count below
+        :attr:`confirmed`) If so, restore its state through the ``on_reset`` hooks. Only where
+        hooks are set; a board that answers neither is a dead line (LinkError)."""
+        if not self.on_reset or self._probing:
+            return
+        self._probing = True
+        try:
+            board_count = self.read_counters()["frames_ok"]
+        except LinkError as exc:
+            if type(exc) is not LinkError:
+                raise
+            raise LinkError(f"{self.port}: the line went dead during {during.name}: no good reply to it nor "
+                            f"to READ_COUNTERS after {self.retries + 1} tries each; is the board connected, "
+                            "configured and running?") from None
+        finally:
+            self._probing = False
+        reset = board_count < self.confirmed
+        self.confirmed = board_count
+        if not reset:
+            return
+        self.stats.resets += 1
+        if self._restoring:
+            raise _ResetDuringRestore()
+        self._restore()
+
+    def _restore(self) -> None:
+        sent, received = self.stats.bytes_sent, self.stats.bytes_received
+        try:
+            for _ in range(RESTORES):
+                self._restoring = True
+                try:
+                    for hook in self.on_reset:
+                        hook()
+                    self.stats.restores += 1
+                    return
+                except _ResetDuringRestore:
+                    self.stats.restore_restarts += 1
+                    continue
+                finally:
+                    self._restoring = False
+            raise LinkError(f"{self.port}: the board reset {RESTORES} times while its state was "
+                            "being restored: is its power supply or cable failing?")
+        finally:
+            self.stats.restore_bytes += self.stats.bytes_sent - sent + self.stats.bytes_received - received
 
     # -- the commands ---------------------------------------------------------------------------
 
@@ -300,11 +392,14 @@ class LinkClient:
         self.stats.count(Command.LOAD_GENOME, self.stats.bytes_sent - sent, self.stats.bytes_received - received)
         if redo_from is None:
             return
+        self._check_reset()  # a reset loses the frames in flight: restore before the redo
         for index in range(redo_from, len(payloads)):
             if index > redo_from and index < redo_from + in_flight:
                 self.stats.resends += 1
                 self.stats.note("in flight behind a failed frame")
-            self.stats.requests -= int(index < redo_from + in_flight)  # counted again by request()
+            if index < redo_from + in_flight:  # sent before, sent again (counted again by request())
+                self.stats.requests -= 1
+                self.stats.bytes_resent += 1 + HEADER_BYTES + len(payloads[index]) + CRC_BYTES
             self.request(Command.LOAD_GENOME, payloads[index], reply_length=0)
 
     def _pipeline(self, payloads, window: int) -> tuple[int | None, int]:
@@ -337,6 +432,7 @@ class LinkClient:
         else:
             header, body = reply
             if header.tag == tag and header.status == Status.OK.value and not body:
+                self.confirmed += 1
                 return True
             name = Status(header.status).name if header.status in {s.value for s in Status} else hex(header.status)
             reason = f"pipelined reply {name}" + ("" if header.tag == tag else " (another tag)")

@@ -62,6 +62,14 @@ class LinkLearningBoard(LinkModelBoard):
         client.clear()
         client.request(Command.SEED, pack(SEED_REQUEST, seed=int(seed) & 0xFFFFFFFF), reply_length=0)
         self._load(population)
+        client.on_reset.append(self.restore)
+
+    def restore(self) -> None:
+        """A board reset (``LinkClient.on_reset``) loses the engine's generators and population,
+        which the host does not mirror: the run stops with one error line, its checkpoint kept."""
+        raise LinkError(f"{self.client.port}: the learner board reset (its frame count went back); the "
+                        "learning engine's population and generators cannot be restored from the host: "
+                        "--resume continues the run from its last checkpoint")
 
     def _load(self, population) -> None:
         from ga.genome import validate_rows
@@ -131,11 +139,10 @@ def make_serial_learning_boards(config, seed: int, population, *, reflex: bool =
     """The ``serial`` backend's boards with ``--ga hardware``: (controller board, learning board)
     of one ``ulx3s-learner`` board on a serial port (default ``EHW_PORT``, ``EHW_BAUD``; ``ehw sim
     --port``, ``--baud``), a device or any pyserial URL."""
-    import os
-
+    from base import environ
     from cosim.link.boards import BAUD_ENV, PORT_ENV, _baud_from_env, open_port
 
-    port = port or os.environ.get(PORT_ENV)
+    port = port or environ.read(PORT_ENV)
     if not port:
         raise LinkError(f"the serial backend needs a port: with --ga hardware one ulx3s-learner board, "
                         f"--port /dev/ttyUSB1 (make sim BACKEND=serial PORT=...; or {PORT_ENV}=..., "

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import logging
 
+from base.environ import UART_LINES
 from cosim.boards.registry import register_backend
 from ga.motions import DEFAULT_DISTANCE_RULE
 
@@ -25,7 +26,7 @@ TOPLEVEL = "system_link_top"
 LEARNER_TOPLEVEL = "learner_link_top"  # --ga hardware: the LearnerLinkTop harness
 SIM_CLK_HZ = 25_000_000  # the ULX3S's oscillator; a whole number of ns a period (40)
 LINE_ENV = "EHW_UART_LINE"  # hdl (default: the host's UART in the simulation) or cocotbext
-LINES = ("hdl", "cocotbext")
+LINES = UART_LINES  # the values of LINE_ENV (base.environ reads it)
 
 _active_line = None  # the line of the running test (inside the simulator only)
 
@@ -61,6 +62,7 @@ class SimulatedSerial:
         from cocotbext.uart import UartSink, UartSource
 
         self.port = f"simulated serial line of {name}"
+        self.dut = dut
         self.timeout = timeout
         self.source = UartSource(dut.rx, baud=baud, bits=8, stop_bits=1)
         self.sink = UartSink(dut.tx, baud=baud, bits=8, stop_bits=1)
@@ -89,6 +91,10 @@ class SimulatedSerial:
     async def _flush(self) -> None:
         self.sink.clear()
 
+    async def _board_reset(self) -> None:
+        await reset_top(self.dut)
+        self.sink.clear()
+
     # pyserial's interface (thread side)
 
     def _call(self, job, *args):
@@ -105,6 +111,11 @@ class SimulatedSerial:
 
     def reset_input_buffer(self) -> None:
         self._call(self._flush)
+
+    def board_reset(self) -> None:
+        """A power glitch of the board top (``--line-faults reset=N``): its reset held 2 cycles,
+        then its RAM sweep; whatever was on the line is lost."""
+        self._call(self._board_reset)
 
 
 class HarnessSerial:
@@ -164,7 +175,13 @@ class HarnessSerial:
     async def _flush(self) -> None:
         self._received.clear()
 
+    async def _board_reset(self) -> None:
+        self.dut.host_w_en.value = 0
+        await reset_top(self.dut)
+        self._received.clear()
+
     _call = SimulatedSerial._call
+    board_reset = SimulatedSerial.board_reset
     write = SimulatedSerial.write
     read = SimulatedSerial.read
     reset_input_buffer = SimulatedSerial.reset_input_buffer
@@ -177,7 +194,7 @@ def make_uart_boards(reflex: bool = True, distance_rule: str = DEFAULT_DISTANCE_
 
     if _active_line is None:
         raise RuntimeError("the uart backend runs the experiment inside the simulator: start it with "
-                           "`python -m cosim.online.run --backend uart` (make sim BACKEND=uart)")
+                           "`ehw sim --backend uart` (make sim BACKEND=uart)")
     return boards_over([LinkClient(_active_line)], reflex=reflex, check=check, distance_rule=distance_rule)
 
 
@@ -198,11 +215,20 @@ def make_uart_learning_boards(config, seed: int, population, reflex: bool = True
                                 distance_rule=distance_rule, check=check)
 
 
+async def reset_top(dut) -> None:
+    """The top's synchronous reset, then the evaluators' RAM sweep (Boot + Clear, 2049 cycles)."""
+    from cocotb.triggers import ClockCycles
+
+    dut.rst.value = 1
+    await ClockCycles(dut.clk, 2)
+    dut.rst.value = 0
+    await ClockCycles(dut.clk, 2100)
+
+
 async def start_top(dut, baud: float, timeout: float, line: str = "cocotbext", name: str = TOPLEVEL):
     """Clock, synchronous reset, the evaluator's RAM sweep; the ``line`` to the top (``LINES``:
     :class:`HarnessSerial` or :class:`SimulatedSerial`)."""
     from cocotb.clock import Clock
-    from cocotb.triggers import ClockCycles
 
     if line not in LINES:
         raise ValueError(f"{LINE_ENV}={line!r}: one of {LINES!r}")
@@ -211,8 +237,5 @@ async def start_top(dut, baud: float, timeout: float, line: str = "cocotbext", n
     dut.internal.value = int(line == "hdl")
     dut.host_w_en.value = 0
     Clock(dut.clk, period_ps, unit="ps", impl="gpi").start(start_high=False)
-    dut.rst.value = 1
-    await ClockCycles(dut.clk, 2)
-    dut.rst.value = 0
-    await ClockCycles(dut.clk, 2100)  # Boot + Clear of the evaluators' RAMs (2049 cycles)
+    await reset_top(dut)
     return HarnessSerial(dut, timeout, name) if line == "hdl" else SimulatedSerial(dut, baud, timeout, name)

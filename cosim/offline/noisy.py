@@ -2,7 +2,7 @@
 
 The noise-free GA of `cosim.offline.run` stops when its best controller reaches the 64 targets; that
 controller grazes obstacles and follows walls so closely that the motor noise of the "real" world
-makes it crash (docs/offline.md, round 2). With a noisy stage (``trials`` K > 0) the same GA goes
+makes it crash (docs/research-log.md, off-line round 2). With a noisy stage (``trials`` K > 0) the same GA goes
 on, and from then on every individual drives the noisy world (`sim_world.world.DEFAULT_NOISE`):
 
 - **Common random numbers**: in generation g every individual drives the same K noise seeds
@@ -45,13 +45,13 @@ Every motion of every noisy run is an interaction of the off-line method (issue 
 
 from __future__ import annotations
 
-import argparse
 import hashlib
 from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 
 import numpy as np
 
+from base.options import add_field_options
 from ga.genome import rows_from_hex, validate_rows
 from ga.model_free import max_run_steps, model_free_fitness
 from ga.truth_table import truth_tables
@@ -329,50 +329,42 @@ def transfer(genome_hex: str | None, arena: str, max_leg_steps: int, n_targets: 
 
 
 # The noisy stage of ``ehw offline`` (``make offline``) by default, with a leg limit of
-# ROBUST_MAX_LEG_STEPS (issue 17, docs/offline.md rounds 5 and 6: configuration O, the evolution in
-# the noisy world from the first generation, with round 6's final race on 20 seeds, Q;
-# experiments/offline_round6.toml). ``--noisy-trials 0 --max-leg-steps 150``
-# (experiments/offline_paper.toml) is the paper's noise-free method, and `run_offline`'s default.
+# ROBUST_MAX_LEG_STEPS: the evolution in the noisy world from the first generation, with a final
+# race on 20 seeds (experiments/offline_round6.toml; docs/research-log.md, off-line rounds 5-6).
+# ``--noisy-trials 0 --max-leg-steps 150`` (experiments/offline_paper.toml) is the paper's
+# noise-free method, and `run_offline`'s default.
 ROBUST_STAGE = NoisyStage(trials=1, race=4, from_start=True, max_generations=5000, budget=9_000_000,
                           accept_runs=40, leg_soft_steps=100, near_miss_mm=50.0, near_miss_cost=0.1,
                           back_cost=0.02, final_race=20, final_candidates=8)
 ROBUST_MAX_LEG_STEPS = 200
-_DEFAULT = ROBUST_STAGE
+
+
+# The help of each ``--noisy-*`` option of ``ehw offline``, one per :class:`NoisyStage` field.
+NOISY_HELP = {
+    "trials": "the noisy stage (cosim.offline.noisy): common noise seeds per generation (from the first "
+              "generation with --noisy-from-start, else once the noise-free best reaches every target; "
+              "0: none, the paper's noise-free method)",
+    "accept_runs": "noisy stage: a controller with this many noisy runs, all clean, ends the run",
+    "max_failures": "noisy stage: a run stops at this many failed legs",
+    "max_generations": "noisy stage: its generation cap (then the best by record is the result)",
+    "race": "noisy stage: seeds of the champion/challenger race for the elite (0: none)",
+    "budget": "noisy stage: it ends once it has spent this many interactions (0: no limit)",
+    "from_start": "noisy stage: from the first generation, no noise-free stage",
+    "leg_soft_steps": "noisy stage: a clean leg of n > S steps costs (n - S) / (limit - S) of a leg (0: none)",
+    "near_miss_mm": "noisy stage: a motion ending with the bumper closer than this to an obstacle costs "
+                    "--noisy-near-miss-cost of a leg (0: none)",
+    "near_miss_cost": "noisy stage: the cost of one near miss, in clean legs",
+    "back_cost": "noisy stage: a backward motion with an obstacle beside or behind costs this much of a leg",
+    "final_race": "noisy stage: at its end the last distinct elites drive this many common seeds each; "
+                  "the one with the fewest failed legs is the result (0: none)",
+    "final_candidates": "noisy stage: how many of the last distinct elites the final race takes",
+}
 
 
 def add_noisy_arguments(parser) -> None:
     """The noisy stage's options of ``ehw offline`` (``--noisy-*``, one per :class:`NoisyStage`
     field; :func:`stage_from_args` reads them back). Their defaults are ROBUST_STAGE's."""
-    parser.add_argument("--noisy-trials", type=int, default=_DEFAULT.trials,
-                        help="the noisy stage (cosim.offline.noisy): common noise seeds per generation "
-                             "(from the first generation with --noisy-from-start, else once the noise-free "
-                             "best reaches every target; 0: none, the paper's noise-free method)")
-    parser.add_argument("--noisy-accept-runs", type=int, default=_DEFAULT.accept_runs,
-                        help="noisy stage: a controller with this many noisy runs, all clean, ends the run")
-    parser.add_argument("--noisy-max-failures", type=int, default=_DEFAULT.max_failures,
-                        help="noisy stage: a run stops at this many failed legs")
-    parser.add_argument("--noisy-max-generations", type=int, default=_DEFAULT.max_generations,
-                        help="noisy stage: its generation cap (then the best by record is the result)")
-    parser.add_argument("--noisy-race", type=int, default=_DEFAULT.race,
-                        help="noisy stage: seeds of the champion/challenger race for the elite (0: none)")
-    parser.add_argument("--noisy-budget", type=int, default=_DEFAULT.budget,
-                        help="noisy stage: it ends once it has spent this many interactions (0: no limit)")
-    parser.add_argument("--noisy-from-start", action=argparse.BooleanOptionalAction, default=_DEFAULT.from_start,
-                        help="noisy stage: from the first generation, no noise-free stage (docs/offline.md round 5)")
-    parser.add_argument("--noisy-leg-soft-steps", type=int, default=_DEFAULT.leg_soft_steps,
-                        help="noisy stage: a clean leg of n > S steps costs (n - S) / (limit - S) of a leg (0: none)")
-    parser.add_argument("--noisy-near-miss-mm", type=float, default=_DEFAULT.near_miss_mm,
-                        help="noisy stage: a motion ending with the bumper closer than this to an obstacle "
-                             "costs --noisy-near-miss-cost of a leg (0: none)")
-    parser.add_argument("--noisy-near-miss-cost", type=float, default=_DEFAULT.near_miss_cost,
-                        help="noisy stage: the cost of one near miss, in clean legs")
-    parser.add_argument("--noisy-back-cost", type=float, default=_DEFAULT.back_cost,
-                        help="noisy stage: a backward motion with an obstacle beside or behind costs this much of a leg")
-    parser.add_argument("--noisy-final-race", type=int, default=_DEFAULT.final_race,
-                        help="noisy stage: at its end the last distinct elites drive this many common seeds "
-                             "each; the one with the fewest failed legs is the result (0: none)")
-    parser.add_argument("--noisy-final-candidates", type=int, default=_DEFAULT.final_candidates,
-                        help="noisy stage: how many of the last distinct elites the final race takes")
+    add_field_options(parser, ROBUST_STAGE, NOISY_HELP, prefix="noisy_")
 
 
 def stage_from_args(args) -> NoisyStage:

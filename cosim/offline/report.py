@@ -17,9 +17,10 @@ from sim_world.course import run_course
 
 
 def plot_results(out: Path, history: list, genome_hex: str | None, arena: str, max_leg_steps: int,
-                 n_targets: int) -> dict:
+                 n_targets: int, seed: int = 0) -> dict:
     """Fig. 5 (the best controller's path through the 64 legs) and Fig. 6 (steps and fitness of
-    the best individual per generation). Returns the file names written."""
+    the best individual per generation), and that path as ``lifetime.npz`` (what ``ehw replay``
+    draws; ``sim_world.recording``). Returns the file names written."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -53,6 +54,11 @@ def plot_results(out: Path, history: list, genome_hex: str | None, arena: str, m
 
         plot_trajectory(world.arena, res.trajectory, path, title=title)
         files["fig5"] = path.name
+        from sim_world.recording import trajectory_arrays, write_recording
+
+        files["recording"] = write_recording({
+            **trajectory_arrays(res.trajectory), "arena": np.array(str(arena)), "seed": np.array(int(seed)),
+            "method": np.array("offline-model-free")}, out).name
     return files
 
 

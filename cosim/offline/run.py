@@ -7,7 +7,7 @@ times, or at a generation cap. Then the best controller is "downloaded to the re
 drives the noisy world (`sim_world.world.DEFAULT_NOISE`) and we count the targets it reaches
 before its first crash (20 noise seeds). With ``noisy=NoisyStage(trials=K)`` (``--noisy-trials``;
 none in `run_offline`) the GA goes on in the noisy world once the noise-free best reaches every
-target (`cosim.offline.noisy`, docs/offline.md round 3), or from the first generation with
+target (`cosim.offline.noisy`, docs/research-log.md, off-line round 3), or from the first generation with
 ``--noisy-from-start`` (round 5). ``ehw offline`` runs the latter by default (round 6:
 `cosim.offline.noisy.ROBUST_STAGE`, leg limit 200); the paper's method is
 ``--config experiments/offline_paper.toml``.
@@ -42,7 +42,7 @@ from typing import Callable
 import numpy as np
 
 from base.checkpoint import load_checkpoint, save_checkpoint
-from base.files import atomic_savefig, atomic_write_json
+from base.files import atomic_write_json
 from cosim.offline.noisy import (ROBUST_MAX_LEG_STEPS, TRANSFER_TRIALS, NoisyStage, Records, add_noisy_arguments,
                                  final_race, load_arena_arg, noisy_generation, table_key, transfer)
 from cosim.offline.report import plot_results, seeds_table  # noqa: F401 (seeds_table: the API)
@@ -421,7 +421,7 @@ def run_offline(
     atomic_write_json(out / "history.json", state["history"])
     if plots:
         summary["figures"] = plot_results(out, state["history"], summary["best_genome"], arena,
-                                          max_leg_steps, n_targets)
+                                          max_leg_steps, n_targets, seed)
     atomic_write_json(out / "summary.json", summary, indent=2)
     return summary
 
@@ -487,7 +487,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> argparse.ArgumentParser:
                         help="noisy-world runs of the final controller (noise seeds seed*1000+i)")
     parser.add_argument("--transfer-leg-steps", type=int, default=0,
                         help="leg limit of those runs (0: --max-leg-steps; the hand-written baseline needs "
-                             "250: docs/offline.md, round 5)")
+                             "250: docs/research-log.md, off-line round 5)")
     parser.add_argument("--no-plots", action="store_true",
                         help="write no figures (an earlier run's figures are removed all the same)")
     parser.add_argument("--table", nargs="+", type=Path, metavar="SUMMARY",

@@ -18,7 +18,7 @@ from ga.hardware_ga import LEARNER_LANES
 from ga.motions import DISTANCE_RULES
 from sim_world.world import CAMERA_RANGE_SD, DEFAULT_NOISE, Noise
 
-LOOP_BLAMES = ("cycle", "leg")  # OnlineConfig.loop_blame (docs/online.md, round 8)
+LOOP_BLAMES = ("cycle", "leg")  # OnlineConfig.loop_blame (docs/research-log.md, on-line round 8)
 
 # The command-line option of each OnlineConfig field (cosim.cli.online), named in error messages.
 OPTIONS = {"n_targets": "--targets", "distance_rule": "--distance"}
@@ -65,16 +65,16 @@ class OnlineConfig:
     # motions cover 0; round 5); "covered", every translation, is the paper's first reading
     distance_rule: str = "forward"
     # learning phase: after a time-out or loop, download the fittest individual whose motion in the
-    # blamed state differs from the failed one (cosim.online.download; docs/online.md, round 1)
+    # blamed state differs from the failed one (cosim.online.download; docs/research-log.md, on-line round 1)
     escape: bool = True
     # the (state, motion) a cycle stop is blamed on (cosim.online.failures): "cycle", a pair of the cycle
     # that stopped the leg (round 8), or "leg", the leg's most frequent obstacle pair (rounds 1-7)
     loop_blame: str = "cycle"
     # the robot's own failure rates per (state, motion) as a fourth fitness term (ga.fail_rates;
-    # docs/online.md, rounds 14-15: the default since round 15); False: SPEC section 7's three terms
+    # docs/research-log.md, on-line rounds 14-15: the default since round 15); False: SPEC section 7's three terms
     fail_rates: bool = True
     # the rate codes pool each pair's counts with its left-right mirror image's (ga.fail_rates;
-    # docs/online.md, round 16); False: each pair's own counts (round 15)
+    # docs/research-log.md, on-line round 16); False: each pair's own counts (round 15)
     rate_mirror: bool = True
     # each rate code also carries the pair's progress deficit, its mean gain towards the ball over
     # the next 8 steps against the best of its state's (ga.fail_rates.progress_codes; docs/online.md,
@@ -134,6 +134,10 @@ class OnlineConfig:
             check(self.blind_bit in range(6), "blind_bit", "an IR bit 0..5")
             check(isinstance(self.blind_after_target, int) and self.blind_after_target >= 1,
                   "blind_after_target", "a target >= 1")
+            if self.blind_after_target >= self.n_targets:  # the lifetime ends there: no blinding at all
+                raise ValueError(f"--blind-bit {self.blind_bit!r} --blind-after-target {self.blind_after_target!r}: "
+                                 f"the lifetime has {self.n_targets} targets, so the bit would never be "
+                                 f"blinded; choose a target in 1..{self.n_targets - 1}")
 
     def world_noise(self) -> Noise | None:
         """The world's noise: DEFAULT_NOISE with the camera's ``range_noise``; None without ``noise``."""

@@ -3,7 +3,7 @@
 The paper downloads the best individual. After a time-out or a loop the world model does not hold
 the loop (the robot came back to a state through noise the model cannot see), so the fittest
 individual usually still chooses the motion that looped; the *escape* downloads instead the
-fittest individual whose motion in the blamed state differs (docs/online.md, round 1).
+fittest individual whose motion in the blamed state differs (docs/research-log.md, on-line round 1).
 """
 
 from __future__ import annotations

@@ -9,7 +9,7 @@ fires (checked after every step that neither crashed nor reached the target, in 
   loop the world model cannot see; reason ``loop``, detector ``window``);
 - :class:`Reentries`: ``k`` entries into one obstacle state since the last new closest approach,
   each counted only among the earlier entries within ``radius_mm`` by odometry (an oscillation
-  in place, docs/online.md round 3);
+  in place, docs/research-log.md, on-line round 3);
 - :class:`Repeats`: the last pairs are ``k`` repetitions of one cycle of 2..6 (state, motion)
   pairs that brought the robot less than ``radius_mm`` on;
 - :class:`Cycles`: the robot has gone ``k`` times round one simple cycle of 2..8 states back to
@@ -200,7 +200,7 @@ class Cycles:
     ``after_approach``: since the last new closest approach), and (``radius_mm`` > 0) by odometry
     within that distance of where the first round began. The cycle's transitions are then the
     world model's latest entries, so the model holds the loop the controller just ran
-    (docs/online.md, round 5). Without ``after_approach`` the odometry alone says the robot made
+    (docs/research-log.md, on-line round 5). Without ``after_approach`` the odometry alone says the robot made
     no progress: a new closest approach by the camera's noisy range is weak evidence of one
     (docs/online.md, "Honest sensing")."""
 
@@ -250,7 +250,7 @@ def blame(pairs) -> tuple[int, int]:
 
 def blame_cycle(cycle) -> tuple[int, int]:
     """The (state, motion) a cycle stop is blamed on with ``loop_blame`` "cycle" (the default,
-    docs/online.md round 8): the first pair of the cycle, in order from the state the robot is in
+    docs/research-log.md, on-line round 8): the first pair of the cycle, in order from the state the robot is in
     now, in a state the controller decides. The cycle starts at the current state, so when that
     state has an obstacle bit the escape changes the very next motion, inside the loop that
     stopped the leg; the leg's most frequent pair (:func:`blame`) was outside that loop in most

@@ -11,6 +11,7 @@ import numpy as np
 from base.files import atomic_savefig, atomic_write_json
 from cosim.paper import PAPER_ONLINE
 from ga.genome import hex_from_rows
+from sim_world.recording import trajectory_arrays, write_recording
 
 
 def summary(run) -> dict:
@@ -64,7 +65,7 @@ def learnt_from(cfg) -> dict:
 
 def interaction_breakdown(phases: list[dict], target_log: list[dict], interactions: int,
                           block: int = 16) -> dict:
-    """Where a lifetime's interactions went (docs/online.md, round 6).
+    """Where a lifetime's interactions went (docs/research-log.md, on-line round 6).
 
     - ``in_failed_segments``: the steps from the later of the last target and the last failure
       up to each failure (crash or stop), i.e. what the failures cost; ``per_failure`` its mean;
@@ -133,7 +134,7 @@ def summary_table(summary: dict) -> str:
                      f"(error sd {lf['range_sd']:.0%}, {lf['range_step_mm']:g} mm steps); exact distance: figures only")
     if summary["config"].get("distance_rule", "forward") != "forward":
         lines.append(f"fitness distance term: dist[a] = {summary['config']['distance_rule']} "
-                     "(the paper's first reading, not SPEC section 7; docs/online.md, round 5)")
+                     "(the paper's first reading, not SPEC section 7; docs/research-log.md, on-line round 5)")
     if "adaptation" in summary:
         ad = summary["adaptation"]
         lines.append(f"adaptation: IR bit {summary['config']['blind_bit']} blinded after target "
@@ -161,7 +162,7 @@ def write_plots(run, out: Path) -> list[Path]:
     title = (f"On-line model-based lifetime (seed {run.config.seed}): {run.targets} targets, "
              f"{run.interactions:,} interactions")
     path = out / "fig9_trajectory.png"
-    plot_trajectory(run.world.arena, [(x, y, 0.0, event) for x, y, event in run.trajectory], path,
+    plot_trajectory(run.world.arena, [(x, y, h, event) for x, y, h, _state, event in run.trajectory], path,
                     title=title)
     paths.append(path)
 
@@ -198,10 +199,29 @@ def write_plots(run, out: Path) -> list[Path]:
     return paths
 
 
+def recording_of(run) -> dict:
+    """The arrays of ``sim_world.recording`` for an on-line lifetime (``cosim.online.run.OnlineRun``)."""
+    phases = run.phases
+    transitions = np.array(sorted(run.transitions), dtype=np.uint8).reshape(-1, 4)
+    return {
+        **trajectory_arrays(run.trajectory),
+        "motions": np.asarray(run.motions, dtype=np.uint8),
+        "curve_states": np.asarray(run.curve_states, dtype=np.int32),
+        "curve_transitions": np.asarray(run.curve_transitions, dtype=np.int32),
+        "phase_interaction": np.array([p["interactions"] for p in phases], dtype=np.int32),
+        "phase_reason": np.array([p["reason"] for p in phases], dtype="U8"),
+        "phase_changed": np.array([bool(p.get("changed", False)) for p in phases], dtype=bool),
+        "transitions": transitions,
+        "arena": np.array(str(run.config.arena)), "seed": np.array(int(run.config.seed)),
+        "method": np.array("online-model-based"),
+    }
+
+
 def write_results(run, out: Path, plots: bool = True) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     summary = run.summary()
     atomic_write_json(out / "summary.json", summary)
+    write_recording(recording_of(run), out)  # what `ehw replay` draws
     if plots:
         summary["plots"] = [str(p) for p in write_plots(run, out)]
     return summary

@@ -1,7 +1,7 @@
 """The on-line model-based method (paper section 5.2, SPEC section 7): one robot lifetime.
 
-    python -m cosim.online.run --seed 1 [--backend reference|amaranth|cocotb] [--resume] ...
-    (the command line: cosim.cli.online; make sim)
+    ehw sim --seed 1 [--backend reference|amaranth|cocotb|serial|uart] [--resume] ...
+    (make sim; the options: cosim.cli.online)
 
 A lifetime alternates two phases, in sequence as in the paper:
 
@@ -99,7 +99,7 @@ class OnlineRun:
         self.interactions = self.targets = 0
         self.mirror = WorldModel()  # host copy of the model (figures only)
         self.transitions: set[tuple[int, int, int, bool]] = set()
-        self.trajectory: list[tuple[float, float, str]] = []
+        self.trajectory: list[tuple[float, float, float, int, str]] = []  # (x, y, heading, state, event)
         self.curve_states: list[int] = []  # |S| after each interaction
         self.curve_transitions: list[int] = []
         self.known_crash_repeats = 0  # motions chosen in a state where the model knows they crash
@@ -112,7 +112,7 @@ class OnlineRun:
         self.best_rows: np.ndarray | None = None
         self.started = False
         self.state = self.world.reset_to_start()
-        self.trajectory.append((*self.world.pose[:2], "start"))
+        self.trajectory.append((*self.world.pose, self.state, "start"))
         self.wall_time_s = 0.0
 
     # -- the execution phase -------------------------------------------------------------------
@@ -130,15 +130,15 @@ class OnlineRun:
         self.interactions += 1
         self.curve_states.append(self.mirror.n_states)
         self.curve_transitions.append(self.mirror.n_transitions)
-        x, y, _ = self.world.pose
+        x, y, h = self.world.pose
         self.state = step.state
         reached = step.reached and not step.crashed  # (a crash restores the pose: never both)
         if self.marks is not None:
             self.marks.executed_pair(s, motion, reached, before, step.range_mm)
         if step.crashed:
-            self.trajectory.append((x, y, "crash"))
+            self.trajectory.append((x, y, h, step.state, "crash"))
         elif reached:
-            self.trajectory.append((x, y, "target"))
+            self.trajectory.append((x, y, h, step.state, "target"))
             self.targets += 1
             if record:
                 self.target_log.append({
@@ -150,9 +150,9 @@ class OnlineRun:
                 self.world.faults = (Fault(at_step=self.world.interactions, bit=self.config.blind_bit),)
                 self.blinded_at = self.interactions
             self.state = self.course.relocate(self.world, self.targets)
-            self.trajectory.append((*self.world.pose[:2], "relocate"))
+            self.trajectory.append((*self.world.pose, self.state, "relocate"))
         else:
-            self.trajectory.append((x, y, ""))
+            self.trajectory.append((x, y, h, step.state, ""))
         self.track.step(s, motion, self.state, step.crashed, reached, step.range_mm)
         return step
 
