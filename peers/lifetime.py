@@ -20,9 +20,9 @@ Rewards (the constants are the Gymnasium env's, ``sim_world.gym_env``, one sourc
   crash, minus ``STEP_COST`` (0.01) on every interaction. It uses only what the robot senses
   (its bumper, its target camera at the target) and the interaction count.
 * ``shaped``: the same plus ``PROGRESS_SCALE`` (10 per metre) times the progress towards the ball
-  in this step. **Shaping**: the progress is a distance to the ball taken from the simulator's
-  hidden pose, information the 8-bit world state does not contain (its camera bits give only the
-  ball's sector); the on-line method never sees it. It is the Gymnasium env's own reward.
+  in this step, measured by the camera's range estimate (``Step.range_mm``, SPEC section 4: the
+  true range within about 10 %, in 10 mm steps), the same signal the on-line method learns its
+  progress from; never the simulator's exact distance. It is the Gymnasium env's own reward.
 """
 
 from __future__ import annotations
@@ -77,7 +77,7 @@ def run_lifetime(method: str, seed: int, *, shaping: str = "shaped", config: Lea
     progress_per_mm = PROGRESS_SCALE / 1000.0
     act, observe, step = learner.act, learner.observe, world.step
     s = world.reset_to_start()
-    d = world.target_distance()
+    d = world.camera_range()  # the camera's estimate, never the exact distance
     targets = crashes = interactions = 0
     at_target: list[int] = []  # interactions when each target was reached
     states = {s}
@@ -94,16 +94,16 @@ def run_lifetime(method: str, seed: int, *, shaping: str = "shaped", config: Lea
         elif out.reached:
             r = TARGET_REWARD - STEP_COST
         else:
-            r = -STEP_COST + (progress_per_mm * (d - out.distance_mm) if shaped else 0.0)
+            r = -STEP_COST + (progress_per_mm * (d - out.range_mm) if shaped else 0.0)
         observe(s, a, r, out.state, out.reached)
         if out.reached:
             targets += 1
             at_target.append(interactions)
             s = course.relocate(world, targets) if targets < n_targets else out.state
             states.add(s)
-            d = world.target_distance()
+            d = world.camera_range()
         else:
-            s, d = out.state, out.distance_mm
+            s, d = out.state, out.range_mm
     return {
         "method": f"{method}/{shaping}",
         "seed": int(seed),

@@ -1,4 +1,4 @@
-"""Tabular reinforcement learners: Q-learning, Dyna-Q and prioritized sweeping.
+"""Tabular reinforcement learners: Q-learning, Dyna-Q, Dyna-Q+ and prioritized sweeping.
 
 All three share one protocol, so the robot lifetime (:mod:`peers.lifetime`) and the test maze
 (:mod:`peers.maze`) drive any of them the same way::
@@ -23,6 +23,11 @@ Learners (references are to Sutton and Barto, *Reinforcement Learning*, 2nd ed.,
   simulated updates per real step from a model that keeps, for each (s, a), the most recent
   outcome (r, s2) -- the same rule as the paper's world model (SPEC section 7: the most recent
   transition). Planning samples uniformly among the (s, a) met.
+* :class:`DynaQPlus` -- Dyna-Q+ (Sutton 1990; S&B section 8.3), a model-based learner built for
+  small discrete worlds: Dyna-Q whose planned backups add the exploration bonus
+  ``kappa * sqrt(tau)`` to the modelled reward (tau: real steps since the pair was last tried),
+  and whose model starts every untried action of a visited state as leading back to that state
+  with reward 0 (S&B's footnote to the Dyna-Q+ example), so planning drives the robot to try it.
 * :class:`PrioritizedSweeping` -- prioritized sweeping (Moore and Atkeson 1993), in the form for a
   deterministic model of S&B section 8.4 (Peng and Williams 1993 is the same idea): the same
   most-recent model as Dyna-Q; after each real step the (s, a) whose update would change Q by more
@@ -35,6 +40,7 @@ Learners (references are to Sutton and Barto, *Reinforcement Learning*, 2nd ed.,
 from __future__ import annotations
 
 import heapq
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -50,6 +56,7 @@ class LearnerConfig:
     q_init: float = 0.0  # initial Q-value of every (s, a)
     planning_steps: int = 0  # Dyna-Q / prioritized sweeping: model updates per real step
     theta: float = 1e-4  # prioritized sweeping: smallest change queued
+    kappa: float = 0.0  # Dyna-Q+: weight of the exploration bonus kappa sqrt(tau) in planning
 
     def __post_init__(self):
         if not 0 < self.alpha <= 1:
@@ -62,6 +69,8 @@ class LearnerConfig:
             raise ValueError(f"planning_steps must be >= 0, got {self.planning_steps!r}")
         if not self.theta >= 0:
             raise ValueError(f"theta must be >= 0, got {self.theta!r}")
+        if not self.kappa >= 0:
+            raise ValueError(f"kappa must be >= 0, got {self.kappa!r}")
 
 
 class QLearning:
@@ -159,6 +168,36 @@ class DynaQ(QLearning):
             self._backup(ps, pa, *model[(ps, pa)])
 
 
+class DynaQPlus(DynaQ):
+    """Dyna-Q+: Dyna-Q with an exploration bonus in planning and untried actions modelled as
+    staying put with reward 0 (module docstring)."""
+
+    name = "dyna-q+"
+
+    def __init__(self, allowed, config: LearnerConfig, rng: np.random.Generator):
+        super().__init__(allowed, config, rng)
+        self.last_tried: dict[tuple[int, int], int] = {}  # (s, a) -> the real step it was last tried
+        self._visited: set[int] = set()
+
+    def observe(self, s: int, a: int, r: float, s2: int, done: bool = False) -> None:
+        QLearning.observe(self, s, a, r, s2, done)
+        if s not in self._visited:  # its untried actions enter the model, tried at step 0
+            self._visited.add(s)
+            for b in self.allowed[s]:
+                if (s, b) not in self.model:
+                    self._remember(s, b, 0.0, s, False)
+        self._remember(s, a, r, s2, done)
+        self.last_tried[(s, a)] = self.real_steps
+        if not self.config.planning_steps:
+            return
+        seen, model, last, now = self._seen, self.model, self.last_tried, self.real_steps
+        kappa = self.config.kappa
+        for k in self.rng.integers(len(seen), size=self.config.planning_steps).tolist():
+            ps, pa = seen[k]
+            pr, ps2, pdone = model[(ps, pa)]
+            self._backup(ps, pa, pr + kappa * math.sqrt(now - last.get((ps, pa), 0)), ps2, pdone)
+
+
 class PrioritizedSweeping(DynaQ):
     """Prioritized sweeping with the most-recent model (module docstring)."""
 
@@ -211,13 +250,14 @@ class PrioritizedSweeping(DynaQ):
                 self._push(qs, qa, self._priority(qs, qa, *self.model[(qs, qa)]))
 
 
-LEARNERS = {cls.name: cls for cls in (QLearning, DynaQ, PrioritizedSweeping)}
+LEARNERS = {cls.name: cls for cls in (QLearning, DynaQ, DynaQPlus, PrioritizedSweeping)}
 
 
 # Untuned starting points (S&B's examples use alpha 0.1-0.5, epsilon 0.1, n 5-50).
 DEFAULTS = {
     "q-learning": LearnerConfig(alpha=0.5, gamma=0.95, epsilon=0.05),
     "dyna-q": LearnerConfig(alpha=0.5, gamma=0.95, epsilon=0.05, planning_steps=10),
+    "dyna-q+": LearnerConfig(alpha=0.5, gamma=0.95, epsilon=0.05, planning_steps=10, kappa=1e-3),
     "prioritized-sweeping": LearnerConfig(alpha=0.5, gamma=0.95, epsilon=0.05, planning_steps=10),
 }
 # The seeds experiments/tune_tabular.py chooses on; `make compare` says whether its seeds meet them.

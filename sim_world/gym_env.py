@@ -14,6 +14,9 @@
 * Reward per step: ``TARGET_REWARD`` (+10) on reaching the target; ``CRASH_REWARD`` (-5) on a
   crash; otherwise the progress towards the ball in metres x ``PROGRESS_SCALE`` (10, so a
   5 cm step straight at the ball earns +0.5), minus ``STEP_COST`` (0.01) for every interaction.
+  The progress is measured by the camera's range estimate (SPEC section 4, ``info["range_mm"]``:
+  noisy when the world's ``Noise.range_sd`` is set), never the exact distance
+  (``info["distance_mm"]``, like ``info["pose"]``, is for analysis only).
 * ``reset(seed=...)`` seeds the world's noise generator: the same seed and actions give the same
   episode. ``render_mode="rgb_array"`` draws the arena, the robot and its IR rays (matplotlib,
   imported lazily).
@@ -75,13 +78,15 @@ class EHWTrackingEnv(gym.Env):
         self._ended: tuple | None = None  # (obs, terminated, truncated) once the episode ended
         self._warned_after_end = False
 
-    def _info(self) -> dict:
+    def _info(self, crashed: bool = False) -> dict:
         return {
+            "crashed": crashed,  # the bumper hit something in this step (the pose was restored)
             "pose": self.world.pose,
             "targets": self._targets,
             "leg_steps": self._leg_steps,
             "interactions": self.world.interactions,
-            "distance_mm": self.world.target_distance(),
+            "distance_mm": self.world.target_distance(),  # exact: analysis only
+            "range_mm": self.world.camera_range(),  # what the robot senses of it
         }
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
@@ -113,7 +118,7 @@ class EHWTrackingEnv(gym.Env):
                 self._warned_after_end = True
             obs, terminated, truncated = self._ended
             return obs, 0.0, terminated, truncated, self._info()
-        before = self.world.target_distance()
+        before = self.world.camera_range()
         out = self.world.step(int(action))
         self._leg_steps += 1
         terminated = truncated = False
@@ -129,14 +134,14 @@ class EHWTrackingEnv(gym.Env):
             else:
                 Course.of(self.arena).relocate(self.world, self._targets)
         else:
-            reward = PROGRESS_SCALE * (before - out.distance_mm) / 1000.0
+            reward = PROGRESS_SCALE * (before - out.range_mm) / 1000.0
         reward -= STEP_COST
         if not terminated and self._leg_steps >= self.max_leg_steps:
             truncated = True
         obs = int(self.world.state())
         if terminated or truncated:
             self._ended = (obs, terminated, truncated)
-        return obs, float(reward), terminated, truncated, self._info()
+        return obs, float(reward), terminated, truncated, self._info(out.crashed)
 
     def render(self):
         if self.render_mode != "rgb_array":

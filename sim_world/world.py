@@ -19,6 +19,11 @@ How the physics engine is used (a measured choice, see docs/world.md):
   free space costs one query instead of ten) and also how far the robot may move without a bumper
   test.
 * Noise-free, the obstacle bits of a pose never change, so they are cached by pose.
+* The camera also gives a range to the ball (SPEC section 4, :func:`camera_range`): one reading
+  per sensed pose, ``Step.range_mm`` and :meth:`World.camera_range`, drawn from the camera's own
+  generator (derived from the world's seed), so it never shifts the motor or IR noise. It never
+  enters the 8 state bits; it is what the host may learn progress from. The exact distance
+  (``Step.distance_mm``, :meth:`World.target_distance`) is for figures only.
 * The two hot queries call Chipmunk's C functions through pymunk's cffi handle (as pymunk's own
   wrappers do) with one reused result struct; see ``_bind_queries``.
 """
@@ -72,6 +77,12 @@ _MASK_TO_BITS = tuple(
 )
 SENSOR_REACH_MM = ROBOT_RADIUS_MM + IR_RANGE_MM  # from the robot's centre
 SECTOR_HALF_WIDTH_DEG = 45.0  # front = -45..+45 degrees (SPEC section 4)
+# The camera's range estimate (SPEC section 4): r = true range x (1 + e), e ~ N(0, sd), 10 mm steps.
+CAMERA_RANGE_SD = 0.10  # the "real" world's relative error (DEFAULT_NOISE.range_sd)
+CAMERA_RANGE_STEP_MM = 10.0
+# The camera's generator: the world seed's SeedSequence, spawn key extended by this word, so its
+# draws are a stream of their own (adding or dropping range readings moves no other noise).
+_CAMERA_STREAM = 0x63616D  # "cam"
 
 # Motion magnitudes, from the single source of truth in ga.motions.
 _TRANSLATION = tuple(float(t) for t in MOTION_TRANSLATION_MM)
@@ -99,15 +110,18 @@ class Noise:
         (wheel slip; a straight motion drifts too).
     ir_false_negative: probability that an IR sensor which sees an obstacle reports nothing.
     ir_false_positive: probability that an IR sensor which sees nothing reports an obstacle.
+
+    range_sd: relative standard deviation e of the camera's range estimate (:func:`camera_range`).
     """
 
     translation_sd: float = 0.0
     rotation_sd_deg: float = 0.0
     ir_false_negative: float = 0.0
     ir_false_positive: float = 0.0
+    range_sd: float = 0.0
 
     def __post_init__(self):
-        for name in ("translation_sd", "rotation_sd_deg"):
+        for name in ("translation_sd", "rotation_sd_deg", "range_sd"):
             if not getattr(self, name) >= 0:
                 raise ValueError(f"Noise.{name} must be >= 0, got {getattr(self, name)!r}")
         for name in ("ir_false_negative", "ir_false_positive"):
@@ -116,11 +130,22 @@ class Noise:
 
     @property
     def is_zero(self) -> bool:
-        return not (self.translation_sd or self.rotation_sd_deg or self.ir_false_negative or self.ir_false_positive)
+        return not (self.translation_sd or self.rotation_sd_deg or self.ir_false_negative or self.ir_false_positive
+                    or self.range_sd)
 
 
-# The "real world" of the on-line experiment: a few percent of motor error and rare IR errors.
-DEFAULT_NOISE = Noise(translation_sd=0.1, rotation_sd_deg=3.0, ir_false_negative=0.02, ir_false_positive=0.005)
+# The "real world" of the on-line experiment: a few percent of motor error, rare IR errors, and
+# the camera's range estimate within about 10 %.
+DEFAULT_NOISE = Noise(translation_sd=0.1, rotation_sd_deg=3.0, ir_false_negative=0.02, ir_false_positive=0.005,
+                      range_sd=CAMERA_RANGE_SD)
+
+
+def camera_range(true_mm: float, sd: float = 0.0, e: float = 0.0) -> float:
+    """The camera's range estimate (SPEC section 4): ``true_mm x (1 + sd e)`` for a standard
+    normal draw ``e`` (from the world's camera generator), quantised to ``CAMERA_RANGE_STEP_MM``
+    and never negative. ``sd`` 0: the true range, quantised."""
+    r = true_mm * (1.0 + sd * e) if sd else true_mm
+    return max(0.0, round(r / CAMERA_RANGE_STEP_MM) * CAMERA_RANGE_STEP_MM)
 
 
 @dataclass(frozen=True)
@@ -149,7 +174,8 @@ class Step(NamedTuple):
     state: int  # the world state observed after the motion
     crashed: bool  # the bumper hit something; the pose was restored to before the motion
     reached: bool  # the robot's centre is within the target radius of the ball
-    distance_mm: float  # distance from the robot's centre to the ball after the motion
+    distance_mm: float  # exact distance from the robot's centre to the ball after the motion (figures only)
+    range_mm: float  # the camera's range estimate after the motion (camera_range): what the host senses
 
 
 def build_space(arena: Arena) -> pymunk.Space:
@@ -261,7 +287,11 @@ class World:
 
     def reset(self, seed=None) -> None:
         """Re-seed the noise generator and zero the interaction counters (the pose is kept)."""
-        self.rng = np.random.default_rng(seed)
+        seq = seed if isinstance(seed, np.random.SeedSequence) else np.random.SeedSequence(seed)
+        self.rng = np.random.default_rng(seq)  # the motor and IR noise (as default_rng(seed))
+        self._camera_rng = np.random.default_rng(
+            np.random.SeedSequence(seq.entropy, spawn_key=(*seq.spawn_key, _CAMERA_STREAM)))
+        self._camera_normals: list[float] = []
         self._normals: list[float] = []
         self._uniforms: list[float] = []
         self.interactions = 0
@@ -303,10 +333,18 @@ class World:
         return self._clearance - ROBOT_RADIUS_MM
 
     def target_distance(self) -> float:
+        """The exact distance (mm) from the robot's centre to the ball: for figures only (what the
+        robot senses of it is :meth:`camera_range`)."""
         return math.hypot(self._bx - self._x, self._by - self._y)
 
     def target_reached(self) -> bool:
-        return self.target_distance() <= self._target_r
+        """The target event: the ball is within the target radius (the robot touches it)."""
+        return math.hypot(self._bx - self._x, self._by - self._y) <= self._target_r
+
+    def camera_range(self) -> float:
+        """The camera's range estimate (mm) at the current pose: one reading per sensed pose
+        (:func:`camera_range`; the same value until the robot is sensed again)."""
+        return self._range
 
     # -- sensing -------------------------------------------------------------------------------
 
@@ -349,9 +387,20 @@ class World:
             self._normals = self.rng.standard_normal(4096).tolist()
         return self._normals.pop()
 
+    def _camera(self, true_mm: float) -> float:
+        """One range reading of the camera at ``true_mm`` (its own generator, one draw a frame)."""
+        sd = 0.0 if self.noise is None else self.noise.range_sd
+        if not sd:
+            return camera_range(true_mm)
+        if not self._camera_normals:
+            self._camera_normals = self._camera_rng.standard_normal(4096).tolist()
+        return camera_range(true_mm, sd, self._camera_normals.pop())
+
     def _sense(self) -> int:
-        """Sense the world state at the current pose: IR bits (noise, faults) and the sector."""
+        """Sense the world state at the current pose: IR bits (noise, faults) and the sector; the
+        camera's range reading goes to ``_range``."""
         x, y, h = self._x, self._y, self._h
+        self._range = self._camera(math.hypot(self._bx - x, self._by - y))
         mask, self._clearance = self._ray_mask(x, y, h)
         noise = self.noise
         if noise is not None and (noise.ir_false_negative or noise.ir_false_positive):
@@ -445,4 +494,4 @@ class World:
             self._x, self._y, self._h = x1, y1, _wrap(h0 + r)
         self._state = self._sense()
         d = math.hypot(self._bx - self._x, self._by - self._y)
-        return Step(self._state, crashed, d <= self._target_r, d)
+        return Step(self._state, crashed, d <= self._target_r, d, self._range)

@@ -128,6 +128,15 @@ def test_cycles_need_distinct_states_with_an_obstacle_bit():
     assert drive(Cycles(1), [(2, 1), (3, 1), (2, 1), (3, 1)], start=1) == []  # 1 -> 1 is no 2-cycle
 
 
+def test_cycles_by_odometry_alone_ignore_a_lucky_range_reading():
+    """Turning in place 1 -> 2 -> 1 -> 2, while the camera's noisy range reads the ball closer at
+    every step: after the approach, no cycle (each reading resets the count); by odometry alone
+    the robot went round without moving, and it fires."""
+    steps = [(2, 2, 990.0), (3, 1, 980.0), (2, 2, 970.0), (3, 1, 960.0), (2, 2, 950.0)]
+    assert drive(Cycles(1, 60.0), steps, start=1) == []
+    assert drive(Cycles(1, 60.0, after_approach=False), steps, start=1) == [2, 3, 4, 5]
+
+
 def test_a_cycle_stop_is_blamed_inside_its_cycle():
     """A leg that went three times through (3, 2), then round the cycle 64 -> 1 -> 64: the leg's
     most frequent pair (``blame``, rounds 1-7) is outside the loop; ``blame_cycle`` puts the stop

@@ -203,9 +203,9 @@ def test_serial_learning_backend_runs_a_lifetime_through_make_run(monkeypatch):
     against the reference beside it): the reference's phases and motions."""
     import cosim.link.boards
 
-    # seed 8: 16 interactions, then a loop in an obstacle state (an escape learned over the link;
+    # seed 5 (seed 8 before honest sensing, issue 36): 16 interactions, then a loop in an obstacle state (an escape learned over the link;
     # with rounds 1-7's blame: round 8's puts this stop on a pair the best already avoids)
-    config = OnlineConfig(seed=8, ga="hardware", arena="one_obstacle", population=6, tournament=2,
+    config = OnlineConfig(seed=5, ga="hardware", arena="one_obstacle", population=6, tournament=2,
                           lanes=2, generations_per_phase=1, max_leg_steps=20, loop_blame="leg", fail_rates=True)
     opened = []
 

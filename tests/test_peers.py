@@ -3,6 +3,7 @@ on-line protocol, and the deep-RL lifetime (skipped without the optional extra [
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 
 import numpy as np
@@ -19,6 +20,8 @@ MAZE = dict(alpha=0.5, gamma=0.95, epsilon=0.1, q_init=1.0)
 
 def _maze_steps(method: str, seed: int) -> int | None:
     cfg = LearnerConfig(**MAZE, planning_steps=0 if method == "q-learning" else 20)
+    if method == "dyna-q+":  # it explores by its bonus, not by optimism
+        cfg = dataclasses.replace(cfg, q_init=0.0, kappa=1e-4)
     learner = make_learner(method, maze.ALLOWED, cfg, np.random.default_rng(seed))
     return maze.learn_maze(learner, max_episodes=300)["real_steps"]
 
@@ -41,6 +44,7 @@ def test_each_learner_finds_the_shortest_path_and_planning_needs_fewer_real_step
     assert all(v is not None for v in steps.values()), steps
     # as in Kaelbling, Littman and Moore (1996, Table 1): Q-learning > Dyna > prioritized sweeping
     assert steps["dyna-q"] < steps["q-learning"] / 2, steps
+    assert steps["dyna-q+"] < steps["q-learning"] / 2, steps
     assert steps["prioritized-sweeping"] < steps["q-learning"] / 2, steps
 
 
@@ -57,6 +61,26 @@ def test_learners_are_seeded_from_their_generator_only():
         make_learner("q-learning", maze.ALLOWED, LearnerConfig(), 4)
     with pytest.raises(ValueError, match="alpha"):
         LearnerConfig(alpha=0.0)
+
+
+def test_dyna_q_plus_models_untried_actions_and_plans_with_the_bonus():
+    allowed = [[0, 1, 2], [0, 1, 2]]
+    cfg = LearnerConfig(alpha=0.5, gamma=0.9, epsilon=0.0, planning_steps=50, kappa=0.1)
+    learner = make_learner("dyna-q+", allowed, cfg, np.random.default_rng(0))
+    learner.observe(0, 0, 0.0, 1)
+    # the untried actions of state 0 stay put with reward 0; state 1 is not visited yet
+    assert learner.model == {(0, 0): (0.0, 1, False), (0, 1): (0.0, 0, False), (0, 2): (0.0, 0, False)}
+    for _ in range(20):
+        learner.observe(0, 0, 0.0, 1)
+    # every reward is 0: only the bonus kappa sqrt(tau) makes a value, largest for the untried ones
+    assert learner.q[0][1] > 0 and learner.q[0][2] > 0
+    assert min(learner.q[0][1], learner.q[0][2]) > learner.q[0][0]
+    plain = make_learner("dyna-q+", allowed, dataclasses.replace(cfg, kappa=0.0), np.random.default_rng(0))
+    for _ in range(21):
+        plain.observe(0, 0, 0.0, 1)
+    assert plain.q == [[0.0] * 3, [0.0] * 3]
+    with pytest.raises(ValueError, match="kappa"):
+        LearnerConfig(kappa=-1.0)
 
 
 def test_prioritized_sweeping_propagates_a_reward_backwards_in_one_step():
@@ -139,21 +163,27 @@ def test_lifetime_env_passes_both_checkers():
 
 
 def test_lifetime_env_applies_the_reflex_and_unshapes():
-    _need_sb3()
-    from peers.deep import lifetime_env
+    from peers.deep import lifetime_env  # the wrappers need gymnasium only
 
     shaped, unshaped = lifetime_env(2, "shaped"), lifetime_env(2, "unshaped")
     obs_s, _ = shaped.reset()
     obs_u, _ = unshaped.reset()
     assert obs_s == obs_u
     rng = np.random.default_rng(0)
-    for _ in range(300):
+    crashes = 0
+    for _ in range(2000):
         a = int(rng.integers(8))
         obs, r_s, *_ = shaped.step(a)
-        obs2, r_u, *_ = unshaped.step(a)
+        before = unshaped.unwrapped.world.crashes
+        obs2, r_u, _, _, info = unshaped.step(a)
+        crashed = unshaped.unwrapped.world.crashes > before
+        crashes += crashed
         assert obs == obs2  # same world, same noise: the reward alone differs
-        assert r_u in (pytest.approx(-0.01), pytest.approx(10 - 0.01), pytest.approx(-5 - 0.01))
-    assert shaped.steps == 300
+        assert info["crashed"] == crashed
+        assert r_u == pytest.approx(-5.01 if crashed else -0.01) or r_u == pytest.approx(10 - 0.01)
+    assert shaped.steps == 2000
+    # crashes counted by the bumper, not by the reward (a noisy range's progress term can be -5 too)
+    assert shaped.crashes == unshaped.crashes == crashes > 0
 
 
 @pytest.mark.parametrize("method", ["dqn", "ppo"])

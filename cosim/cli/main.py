@@ -55,6 +55,7 @@ from cosim.cli.gatesim import cmd_gatesim, gatesim_parser
 from cosim.cli.limit import cmd_limit, limit_parser
 from cosim.cli.options import RESULTS
 from cosim.cli.report import add_report_flag, cmd_replay, cmd_report, replay_parser, report_at_end, report_parser
+from cosim.cli.tune import cmd_tune, tune_parser
 from cosim.compare.options import COMPARE_ROOT
 
 # -- the other subcommands ------------------------------------------------------------------------
@@ -204,6 +205,7 @@ COMMANDS = {
     "replay": (replay_parser, cmd_replay, "a lifetime as a video (the arena, the robot, its IR bits, trail, crashes, targets, phases) -> RUN_DIR/replay.mp4"),
     "report": (report_parser, cmd_report, "one self-contained report.html of a run folder (summary, replay, curves, world model, controller, config)"),
     "limit": (limit_parser, cmd_limit, "the fewest interactions any controller could need (omniscient planner) -> results/limit/<date>-<time>/"),
+    "tune": (tune_parser, cmd_tune, "equal-effort tuning of one learning method (Optuna TPE) -> results/tune/<method>[-<shaping>].db/.json"),
 }
 _SUBPARSERS: dict[str, argparse.ArgumentParser] = {}
 

@@ -20,6 +20,8 @@ FIELD_HELP = {
     "seed": "the run's seed (the world, the course, the GA)",
     "arena": "the arena: a shipped name (ehw arena) or a JSON file",
     "noise": "the noisy 'real' world (sim_world.world.DEFAULT_NOISE)",
+    "range_noise": "relative error of the camera's range estimate, all the robot learns progress "
+                   "from (SPEC section 4; with --noise)",
     "reflex": "the reflex in free space (SPEC section 6)",
     "population": "GA population of a learning phase (SPEC section 7)",
     "tournament": "GA tournament size",
@@ -34,6 +36,8 @@ FIELD_HELP = {
                       "back within this distance by odometry (0: off)",
     "loop_cycles": "stop a leg once the robot has gone K times round one simple cycle of states back "
                    "to where it is (SPEC section 7: 1; 0: off, the first reading)",
+    "cycles_after_approach": "the cycle stop counts only rounds since the last new closest approach by "
+                             "the camera's range (before issue 36); default: odometry alone",
     "max_interactions": "end the lifetime after this many interactions even short of the targets (0: never)",
     "escape": "after a time-out or loop, download the best that avoids the blamed motion",
     "fail_rates": "the robot's own failure rate of each (state, motion) as a fourth fitness term "
@@ -46,7 +50,7 @@ FIELD_HELP = {
           "(SPEC section 12, docs/learner.md)",
     "lanes": "evaluator lanes of --ga hardware (default: the ulx3s-learner bitstream's)",
 }
-FIELD_EXTRA = {**{rate: {"metavar": "P"} for rate in RATES},
+FIELD_EXTRA = {**{rate: {"metavar": "P"} for rate in RATES}, "range_noise": {"metavar": "SD"},
                "loop_cycles": {"metavar": "K"},
                "loop_blame": {"choices": LOOP_BLAMES}, "ga": {"choices": ("host", "hardware")}}
 

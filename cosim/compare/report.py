@@ -13,7 +13,7 @@ from base.files import atomic_savefig
 from cosim.paper import PAPER_OFFLINE, PAPER_ONLINE
 
 PAPER = {"online": PAPER_ONLINE, "offline": PAPER_OFFLINE}
-TABULAR = ("q-learning", "dyna-q", "prioritized-sweeping")
+TABULAR = ("q-learning", "dyna-q", "dyna-q+", "prioritized-sweeping")
 DEEP = ("dqn", "ppo")
 METHODS = ("online", "offline", "baseline") + TABULAR + DEEP
 OPTIONAL = DEEP  # need the [rl] extra; not in the default --methods
@@ -24,7 +24,7 @@ ROWS = ("interactions", "crashes", "targets_reached", "world_states", "transitio
 ADAPT_WINDOW = 8
 N_TARGETS = 64
 NAMES = {"online": "on-line model-based", "offline": "off-line model-free", "baseline": "reactive baseline",
-         "q-learning": "Q-learning", "dyna-q": "Dyna-Q", "prioritized-sweeping": "prioritized sweeping",
+         "q-learning": "Q-learning", "dyna-q": "Dyna-Q", "dyna-q+": "Dyna-Q+", "prioritized-sweeping": "prioritized sweeping",
          "dqn": "DQN (SB3)", "ppo": "PPO (SB3)"}
 
 

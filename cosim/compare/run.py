@@ -10,10 +10,10 @@ Methods (``--methods``, default: all but the optional deep-RL ones):
 * ``online``: the on-line model-based method (``cosim.online.run``; ``--online KEY=VALUE`` options).
 * ``offline``: the off-line model-free method (``cosim.offline.run.run_offline``).
 * ``baseline``: the hand-written reactive controller (``sim_world.baseline``) in the noisy world.
-* ``q-learning``, ``dyna-q``, ``prioritized-sweeping``: tabular learners (``peers.tabular``) in
-  one lifetime under the on-line protocol (``peers.lifetime``), once per ``--shaping``
-  (``unshaped``: target, crash and step rewards only; ``shaped``: plus the progress towards the
-  ball, a distance the 8-bit state does not contain). Hyper-parameters: ``peers.tabular.TUNED``,
+* ``q-learning``, ``dyna-q``, ``dyna-q+``, ``prioritized-sweeping``: tabular learners
+  (``peers.tabular``) in one lifetime under the on-line protocol (``peers.lifetime``), once per
+  ``--shaping`` (``unshaped``: target, crash and step rewards only; ``shaped``: plus the progress
+  towards the ball by the camera's noisy range, SPEC section 4, which the 8-bit state does not contain). Hyper-parameters: ``peers.tabular.TUNED``,
   chosen by experiments/tune_tabular.py on its tuning seeds.
 * ``dqn``, ``ppo`` (optional, ``pip install .[rl]``): stable-baselines3 on the Gymnasium env
   (``peers.deep``), under the same protocol, every environment step counted. Hyper-parameters:
@@ -184,8 +184,10 @@ def make_tasks(methods, seeds, *, arena: str, out: str, shapings=SHAPINGS, onlin
                resume: bool = False) -> list[dict]:
     """The sweep's tasks: one per (row, seed); ``config`` holds what determines the result."""
     from peers.lifetime import MAX_INTERACTIONS
+    from sim_world.world import DEFAULT_NOISE
 
     cap = max_interactions or MAX_INTERACTIONS
+    sensing = {"range_sd": DEFAULT_NOISE.range_sd}  # the camera range the shaped peers learn from
     tasks = []
     for m in methods:
         if m == "online":
@@ -200,13 +202,13 @@ def make_tasks(methods, seeds, *, arena: str, out: str, shapings=SHAPINGS, onlin
             from peers.tabular import tuned_config
 
             rows = [(f"{m}/{sh}", "tabular", {"arena": arena, "shaping": sh, "max_interactions": cap,
-                                              "learner": dataclasses.asdict(tuned_config(m, sh))})
+                                              "learner": dataclasses.asdict(tuned_config(m, sh)), **sensing})
                     for sh in shapings]
         elif m in DEEP:
             from peers.deep import tuned_hyper
 
             rows = [(f"{m}/{sh}", "deep", {"arena": arena, "shaping": sh, "max_interactions": cap,
-                                           "hyper": tuned_hyper(m, sh)}) for sh in shapings]
+                                           "hyper": tuned_hyper(m, sh), **sensing}) for sh in shapings]
         else:
             raise ValueError(f"unknown method {m!r}; choose from {', '.join(METHODS)}")
         for row, kind, config in rows:

@@ -16,6 +16,7 @@ from cosim.online.failures import Cycles, LegTimeout, NoProgress, Reentries, Rep
 from ga.evolution import GAConfig
 from ga.hardware_ga import LEARNER_LANES
 from ga.motions import DISTANCE_RULES
+from sim_world.world import CAMERA_RANGE_SD, DEFAULT_NOISE, Noise
 
 LOOP_BLAMES = ("cycle", "leg")  # OnlineConfig.loop_blame (docs/research-log.md, on-line round 8)
 
@@ -35,6 +36,9 @@ class OnlineConfig:
     arena: str = "default"
     n_targets: int = 64
     noise: bool = True  # the "real" world: sim_world.world.DEFAULT_NOISE
+    # the camera's range estimate in that world, r = true (1 + e), e ~ N(0, range_noise) (SPEC
+    # section 4): all the host learns progress towards the ball from (not the exact distance)
+    range_noise: float = CAMERA_RANGE_SD
     reflex: bool = True
     # GA (SPEC section 7: population 500, tournament 20, elitism, about 10 generations a phase)
     population: int = 500
@@ -53,6 +57,10 @@ class OnlineConfig:
     loop_repeats: int = 4  # repetitions of one cycle of 2..6 (state, motion) pairs (round 3)
     loop_radius_mm: float = 80.0  # the two above and loop_cycles: back within this, by odometry
     loop_cycles: int = 1  # rounds of one simple state cycle (SPEC section 7; round 5)
+    # False (the default since honest sensing, docs/online.md): the cycle stop by odometry alone, any
+    # rounds within loop_radius_mm; True: only rounds since the last new closest approach to the ball
+    # by the camera's range (before issue 36, by the exact distance)
+    cycles_after_approach: bool = False
     # dist[a] of the fitness (ga.motions.DISTANCE_RULES): "forward" is SPEC section 7 (backward
     # motions cover 0; round 5); "covered", every translation, is the paper's first reading
     distance_rule: str = "forward"
@@ -103,13 +111,16 @@ class OnlineConfig:
         value = self.loop_radius_mm
         check(isinstance(value, (int, float)) and math.isfinite(value) and value >= 0, "loop_radius_mm",
               "a finite distance >= 0")
+        value = self.range_noise
+        check(isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+              and value >= 0, "range_noise", "a finite relative error >= 0")
         value = self.progress_weight
         check(isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
               and value >= 0, "progress_weight", "a finite weight >= 0")
         if not self.fail_rates:  # the deficit rides on the rate codes: none without them
             object.__setattr__(self, "progress_weight", 0.0)
         check(self.distance_rule in DISTANCE_RULES, "distance_rule", f"one of {', '.join(DISTANCE_RULES)}")
-        for field in ("noise", "reflex", "escape", "fail_rates", "rate_mirror"):
+        for field in ("noise", "reflex", "escape", "fail_rates", "rate_mirror", "cycles_after_approach"):
             check(isinstance(getattr(self, field), bool), field, "True or False")
         check(isinstance(self.arena, str) and bool(self.arena), "arena", "an arena name or .json path")
         check(self.ga in ("host", "hardware"), "ga", "host or hardware")
@@ -128,6 +139,10 @@ class OnlineConfig:
                                  f"the lifetime has {self.n_targets} targets, so the bit would never be "
                                  f"blinded; choose a target in 1..{self.n_targets - 1}")
 
+    def world_noise(self) -> Noise | None:
+        """The world's noise: DEFAULT_NOISE with the camera's ``range_noise``; None without ``noise``."""
+        return dataclasses.replace(DEFAULT_NOISE, range_sd=float(self.range_noise)) if self.noise else None
+
     def ga_config(self) -> GAConfig:
         return GAConfig(
             population=self.population, tournament=self.tournament, elitism=self.elitism,
@@ -145,7 +160,7 @@ class OnlineConfig:
         if self.loop_repeats:
             found.append(Repeats(self.loop_repeats, self.loop_radius_mm))
         if self.loop_cycles:
-            found.append(Cycles(self.loop_cycles, self.loop_radius_mm))
+            found.append(Cycles(self.loop_cycles, self.loop_radius_mm, self.cycles_after_approach))
         return found
 
     def to_dict(self) -> dict:

@@ -42,7 +42,8 @@ class Track:
       dead-reckoned from the start of the lifetime (crashed motions do not move it);
     - ``state``: the state the robot is in now;
     - ``closest`` / ``since_closer``: the closest approach to the ball since the phase began or
-      the last target, and the steps since it; ``closer``: the last step made a new one;
+      the last target, and the steps since it; ``closer``: the last step made a new one (judged
+      on the camera's range estimate, SPEC section 4, never the exact distance);
     - ``entered``: the last step, not a new closest approach, entered an obstacle state from
       another state.
     """
@@ -62,9 +63,9 @@ class Track:
         self.closest, self.since_closer = float("inf"), 0
 
     def step(self, state: int, motion: int, next_state: int, crashed: bool, reached: bool,
-             distance_mm: float) -> None:
+             range_mm: float) -> None:
         """One interaction: ``motion`` in ``state`` led to ``next_state`` (after a target: the
-        state at the relocation position) at ``distance_mm`` from the ball."""
+        state at the relocation position), where the camera read ``range_mm`` to the ball."""
         self.pairs.append((state, motion))
         if not crashed:
             x, y, heading = self.odometry
@@ -78,9 +79,9 @@ class Track:
             self.pairs.clear()
             self.places.clear()
             self.new_phase()
-        self.closer = distance_mm < self.closest - 1e-9
+        self.closer = range_mm < self.closest - 1e-9
         if self.closer:
-            self.closest, self.since_closer = distance_mm, 0
+            self.closest, self.since_closer = range_mm, 0
         else:
             self.since_closer += 1
         self.entered = not self.closer and next_state != state and bool(next_state & OBSTACLE_MASK)
@@ -195,15 +196,18 @@ class Repeats:
 
 class Cycles:
     """The robot is back in its current state after a simple cycle of p pairs (2 <= p <= 8, its
-    states distinct, one with an obstacle bit), gone round ``k`` times in a row since the last
-    new closest approach, and (``radius_mm`` > 0) by odometry within that distance of where the
-    first round began. The cycle's transitions are then the world model's latest entries, so the
-    model holds the loop the controller just ran (docs/research-log.md, on-line round 5)."""
+    states distinct, one with an obstacle bit), gone round ``k`` times in a row (with
+    ``after_approach``: since the last new closest approach), and (``radius_mm`` > 0) by odometry
+    within that distance of where the first round began. The cycle's transitions are then the
+    world model's latest entries, so the model holds the loop the controller just ran
+    (docs/research-log.md, on-line round 5). Without ``after_approach`` the odometry alone says the robot made
+    no progress: a new closest approach by the camera's noisy range is weak evidence of one
+    (docs/online.md, "Honest sensing")."""
 
     name, reason = "cycles", "loop"
 
-    def __init__(self, k: int, radius_mm: float = 0.0):
-        self.k, self.radius_mm = k, radius_mm
+    def __init__(self, k: int, radius_mm: float = 0.0, after_approach: bool = True):
+        self.k, self.radius_mm, self.after_approach = k, radius_mm, after_approach
         self.cycle: list[tuple[int, int]] = []  # the pairs of the last round when it fired
 
     def reset(self) -> None:
@@ -213,7 +217,7 @@ class Cycles:
         w, now = track.pairs, track.state
         for p in range(2, 9):
             n = self.k * p
-            if n > len(w) or n > track.since_closer:
+            if n > len(w) or (self.after_approach and n > track.since_closer):
                 break
             if w[-p][0] != now:
                 continue

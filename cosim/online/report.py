@@ -41,6 +41,7 @@ def summary(run) -> dict:
         "where_interactions_go": interaction_breakdown(run.phases, run.target_log, run.interactions),
         "board_cycles": {"controller": int(getattr(run.controller, "cycles", 0)),
                          "evaluator": int(getattr(run.evaluator, "cycles", 0))},
+        "learnt_from": learnt_from(cfg),
         "config": cfg.to_dict(), "phases": run.phases, "targets": run.target_log,
     }
     if at64 is not None and cfg.n_targets > 64:
@@ -49,6 +50,17 @@ def summary(run) -> dict:
         out["adaptation"] = adaptation_figures(run.target_log, cfg.blind_after_target, run.blinded_at)
     out["hardware"] = hardware_figures(run)
     return out
+
+
+def learnt_from(cfg) -> dict:
+    """The signals the lifetime learnt from (SPEC section 4, issue 36): the sensor bits, the
+    bumper, the target event and the camera's range estimate; the exact distance only for figures."""
+    from sim_world.world import CAMERA_RANGE_STEP_MM
+
+    noise = cfg.world_noise()
+    return {"state": "8 sensor bits", "events": ["bumper", "target reached"],
+            "progress": "camera range", "range_sd": 0.0 if noise is None else noise.range_sd,
+            "range_step_mm": CAMERA_RANGE_STEP_MM, "exact_distance": "figures only"}
 
 
 def interaction_breakdown(phases: list[dict], target_log: list[dict], interactions: int,
@@ -116,6 +128,10 @@ def summary_table(summary: dict) -> str:
                      f"interactions, {summary['generations']:,} generations (Fig. 11)")
     reasons = ", ".join(f"{k} {v}" for k, v in summary["phase_reasons"].items())
     lines.append(f"phase reasons: {reasons}; wall time {summary['wall_time_s']:.1f} s")
+    if "learnt_from" in summary:
+        lf = summary["learnt_from"]
+        lines.append(f"learnt from: sensor bits, bumper, target event and the {lf['progress']} "
+                     f"(error sd {lf['range_sd']:.0%}, {lf['range_step_mm']:g} mm steps); exact distance: figures only")
     if summary["config"].get("distance_rule", "forward") != "forward":
         lines.append(f"fitness distance term: dist[a] = {summary['config']['distance_rule']} "
                      "(the paper's first reading, not SPEC section 7; docs/research-log.md, on-line round 5)")

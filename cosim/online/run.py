@@ -55,7 +55,7 @@ from ga.motions import OBSTACLE_MASK
 from ga.truth_table import truth_tables
 from ga.world_model import WorldModel
 from sim_world.course import Course
-from sim_world.world import DEFAULT_NOISE, Fault, World
+from sim_world.world import Fault, World
 
 CHECKPOINT_KIND = "online"
 FAILURES = ("crash", "timeout", "loop")  # the reasons a learning phase follows a failure
@@ -84,7 +84,7 @@ class OnlineRun:
         self.controller, self.evaluator = controller, evaluator
         self.checkpoint_path, self.progress, self.backend = checkpoint, progress, backend
         world_seed, self.rng = _seeds(config.seed)
-        self.world = World(config.arena, noise=DEFAULT_NOISE if config.noise else None, seed=world_seed)
+        self.world = World(config.arena, noise=config.world_noise(), seed=world_seed)
         self.course = Course.of(self.world)
         self.ga = GeneticAlgorithm(config.ga_config(), self.rng)
         if controller is not None:  # None: a learner top's, set by make_run (its reflex set there)
@@ -119,7 +119,7 @@ class OnlineRun:
 
     def step(self, motion: int, record: bool = True):
         """Execute one motion: one interaction, one model update; relocation after a target."""
-        s, before = self.state, self.world.target_distance()
+        s, before = self.state, self.world.camera_range()  # never the exact distance
         self.known_crash_repeats += int(self.mirror.crash[s, motion])
         step = self.world.step(motion)
         self.evaluator.observe(s, motion, step.state, step.crashed)
@@ -134,7 +134,7 @@ class OnlineRun:
         self.state = step.state
         reached = step.reached and not step.crashed  # (a crash restores the pose: never both)
         if self.marks is not None:
-            self.marks.executed_pair(s, motion, reached, before, step.distance_mm)
+            self.marks.executed_pair(s, motion, reached, before, step.range_mm)
         if step.crashed:
             self.trajectory.append((x, y, h, step.state, "crash"))
         elif reached:
@@ -153,7 +153,7 @@ class OnlineRun:
             self.trajectory.append((*self.world.pose, self.state, "relocate"))
         else:
             self.trajectory.append((x, y, h, step.state, ""))
-        self.track.step(s, motion, self.state, step.crashed, reached, step.distance_mm)
+        self.track.step(s, motion, self.state, step.crashed, reached, step.range_mm)
         return step
 
     def execute(self) -> tuple[str, int, int, int, str]:
@@ -183,14 +183,14 @@ class OnlineRun:
                 if extra := self.extra_stop(steps, at_target=True):
                     return extra, steps, s, a, ""
                 continue
+            if cfg.max_interactions and self.interactions >= cfg.max_interactions:  # before a failure
+                return "budget", steps, s, a, ""
             if step.crashed:
                 return "crash", steps, s, a, ""
             for detector, hit in zip(self.detectors, fired):
                 if hit:
                     return (detector.reason, steps, *self.blamed(detector),
                             detector.name if detector.reason == "loop" else "")
-            if cfg.max_interactions and self.interactions >= cfg.max_interactions:
-                return "budget", steps, s, a, ""
             if extra := self.extra_stop(steps, at_target=False):
                 return extra, steps, s, a, ""
 
