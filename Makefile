@@ -43,7 +43,7 @@ help:
 	@echo "make test      the whole test suite (creates .venv, installs iverilog if missing)"
 	@echo "make test-fast the suite without the cocotb/Verilator simulator builds (the inner loop)"
 	@echo "make offline   ehw offline: off-line model-free experiment (issue 17's noisy stage; the paper's method: ARGS=\"--config experiments/offline_paper.toml\")"
-	@echo "make compare   ehw compare: every method over SEEDS seeds -> results/compare/latest/compare.{md,json,png} (JOBS, ARGS=\"--methods ... --cluster local\")"
+	@echo "make compare   ehw compare: every method over SEEDS seeds -> results/compare/latest/compare.{md,json,png}, compare_box.png (JOBS, ARGS=\"--methods ... --cluster local\")"
 	@echo "make rl        install the optional deep-RL extra (stable-baselines3, CPU torch) for --methods dqn,ppo"
 	@echo "make verilog   build/verilog/*.v"
 	@echo "make formal    the formal proofs (Yosys SAT) -> results/formal.json (docs/formal.md)"

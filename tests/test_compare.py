@@ -18,6 +18,8 @@ from cosim.compare.run import (
     fixed_controller_adaptation,
     make_tasks,
     markdown,
+    seed_provenance,
+    write_boxplot,
     run_task,
     write_plot,
 )
@@ -54,14 +56,14 @@ def test_report_medians_ranges_and_ratio(tmp_path):
     }
     report = build_report(results, "default", [1, 2, 3])
     on = report["methods"]["online"]["interactions"]
-    assert on == {"median": 12_000.0, "min": 10_000, "max": 20_000}
+    assert on == {"median": 12_000.0, "q1": 11_000.0, "q3": 16_000.0, "min": 10_000, "max": 20_000}
     assert report["methods"]["online"]["interactions_per_seed"] == {1: 10_000, 2: 12_000, 3: 20_000}
     assert report["interaction_ratio"]["of_medians"] == 3_000_000 / 12_000
     assert report["interaction_ratio"]["per_seed"] == [300.0, 200.0, 200.0]
     q = report["methods"]["q-learning/shaped"]
     assert q["reached_64"] == 2 and q["capped"] == {2: 40}
     text = markdown(report)
-    assert "| on-line model-based | 3/3 | 12,000 (10,000-20,000) | - | 3 |" in text  # no limit planned: "-"
+    assert "| on-line model-based | 3/3 | 12,000 (10,000-20,000) | 11,000-16,000 | - | 3 |" in text  # no limit: "-"
     assert "| off-line model-free | 3/3 | 3,000,000 (2,400,000-4,000,000) |" in text
     assert "| Q-learning, shaped | 2/3 | 9,000 (7,000-100,000) |" in text
     assert "| paper, on-line | yes | 12,280 |" in text and "| paper, off-line | yes | 3,283,269 |" in text
@@ -69,6 +71,22 @@ def test_report_medians_ranges_and_ratio(tmp_path):
     assert "**250**" in text
     png = write_plot(report, tmp_path / "compare.png")
     assert png.stat().st_size > 10_000
+    box = write_boxplot(report, tmp_path / "compare_box.png")
+    assert box.stat().st_size > 10_000
+
+
+def test_the_table_says_which_seeds_chose_the_settings():
+    results = {"online": {1: _fake(9_000, 300, 500), 281: _fake(5_000, 300, 500)},
+               "q-learning/shaped": {1001: _fake(7_000, 0, 0)}}
+    report = build_report(results, "default", [1, 281, 1001])
+    report["seed_provenance"] = seed_provenance(results, [1, 281, 1001])
+    text = markdown(report)
+    assert "## Seeds: which chose the settings" in text and "Reported: seeds 1, 281, 1001." in text
+    online, tabular = report["seed_provenance"]
+    assert "seeds 1..280" in online and "**reported seeds 1 were among them**" in online
+    assert "1001..1003" in tabular and "**reported seeds 1001 were among them**" in tabular
+    clean = seed_provenance(results, [281, 282])
+    assert all("none of the reported seeds was" in line for line in clean)
 
 
 def test_fixed_controller_under_a_blinded_sensor_is_counted_and_blind():
@@ -167,7 +185,7 @@ def test_same_table_on_a_process_pool_and_a_local_dask_cluster(tmp_path):
     assert set(pool) == {"baseline", "q-learning/shaped"}
     assert pool["q-learning/shaped"]["1"][0] == 800  # capped at the given interactions
     assert "Dask cluster local" in (tmp_path / "dask" / "compare.md").read_text()
-    assert (tmp_path / "pool" / "compare.png").exists()
+    assert (tmp_path / "pool" / "compare.png").exists() and (tmp_path / "pool" / "compare_box.png").exists()
 
 
 class _Refuse(Executor):

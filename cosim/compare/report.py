@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from base.files import atomic_savefig
+from base.files import atomic_savefig, atomic_write_bytes
 from cosim.paper import PAPER_OFFLINE, PAPER_ONLINE
 
 PAPER = {"online": PAPER_ONLINE, "offline": PAPER_OFFLINE}
@@ -38,10 +38,12 @@ def display_name(row: str) -> str:
 
 
 def _stats(values) -> dict:
+    """Median, quartiles (numpy's linear interpolation) and range of the values that are not None."""
     values = [v for v in values if v is not None]
     if not values:
-        return {"median": None, "min": None, "max": None}
-    return {"median": float(np.median(values)), "min": min(values), "max": max(values)}
+        return {"median": None, "q1": None, "q3": None, "min": None, "max": None}
+    q1, med, q3 = np.percentile(values, [25, 50, 75])
+    return {"median": float(med), "q1": float(q1), "q3": float(q3), "min": min(values), "max": max(values)}
 
 
 def _fmt(stat: dict) -> str:
@@ -54,6 +56,12 @@ def _fmt(stat: dict) -> str:
         text += f" ({lo:,.0f}-{hi:,.0f})" if float(lo).is_integer() and float(hi).is_integer() and abs(hi) > 9 \
             else f" ({lo:,.1f}-{hi:,.1f})"
     return text
+
+
+def _fmt_quartiles(stat: dict) -> str:
+    if stat.get("q1") is None:
+        return "-"
+    return f"{stat['q1']:,.0f}-{stat['q3']:,.0f}"
 
 
 def build_report(results: dict, arena: str, seeds: list[int]) -> dict:
@@ -90,6 +98,56 @@ def add_limit(report: dict, limit: dict | None) -> dict:
     return report
 
 
+def _overlap(seeds, chosen) -> str:
+    used = sorted(set(seeds) & set(chosen))
+    return f"**reported seeds {_seed_text(used)} were among them**" if used else "none of the reported seeds was"
+
+
+def seed_provenance(rows, seeds: list[int]) -> list[str]:
+    """Per method family in ``rows``: the seeds its settings were chosen on (each family's own
+    record of them) and whether the reported ``seeds`` meet them."""
+    from cosim.online.config import CHOSEN_ON_SEEDS
+    from peers.deep import TUNED as DEEP_TUNED
+    from peers.tabular import TUNED, TUNING_SEEDS
+    from sim_world.baseline import TUNING_RUNS
+
+    methods = {r.partition("/")[0] for r in rows}
+    lines = []
+    if "online" in methods:
+        lines.append(f"On-line model-based: its defaults were chosen over the rounds of docs/research-log.md on seeds "
+                     f"{_seed_text(list(CHOSEN_ON_SEEDS))} (`cosim.online.config.CHOSEN_ON_SEEDS`); "
+                     f"{_overlap(seeds, CHOSEN_ON_SEEDS)}.")
+    if "offline" in methods:
+        lines.append("Off-line model-free: the paper's method with SPEC section 7's parameters (docs/offline.md), "
+                     "not tuned on seeds.")
+    if "baseline" in methods:
+        noise = sorted({s for arena, noise, s in TUNING_RUNS if arena == "default" and noise is not None})
+        lines.append(f"Reactive baseline: its table was tuned on every leg of the default arena's noise seeds "
+                     f"{_seed_text(noise)} (`sim_world.baseline.TUNING_RUNS`); {_overlap(seeds, noise)}.")
+    if methods & set(TABULAR):
+        lines.append(f"Tabular peers: hyper-parameters chosen on seeds {_seed_text(list(TUNING_SEEDS))} "
+                     f"(`peers.tabular.TUNED`{'' if TUNED else ': not yet run, defaults'}; "
+                     f"experiments/tune_tabular.py); {_overlap(seeds, TUNING_SEEDS)}.")
+    if methods & set(DEEP):
+        lines.append(f"DQN and PPO: stable-baselines3's defaults with peers/deep.py's settings, the learning rate "
+                     f"(and DQN's exploration fraction) chosen on seeds {_seed_text(list(TUNING_SEEDS))} "
+                     f"(experiments/tune_deep.py{'' if DEEP_TUNED else ': not yet run'}); "
+                     f"{_overlap(seeds, TUNING_SEEDS)}.")
+    return lines
+
+
+def write_boxplot(report: dict, path: Path) -> Path | None:
+    """The box plots of each method's interactions and targets reached over the seeds
+    (``cosim.report.figures.compare_boxplot``), as ``path``; None when no row has a lifetime."""
+    from cosim.report.figures import compare_boxplot
+
+    png = compare_boxplot(report, labels={row: display_name(row) for row in report["methods"]},
+                          order=_row_order(report["methods"]))
+    if png is None:
+        return None
+    return atomic_write_bytes(path, png)
+
+
 def _over_limit(stats: dict) -> str:
     ratio = stats.get("median_over_limit")
     return "-" if ratio is None else f"{ratio:.1f}"
@@ -112,19 +170,20 @@ def markdown(report: dict) -> str:
     seeds = report["seeds"]
     limit = report.get("limit")
     lines = [f"# Every method on the same task ({report['arena']} arena, seeds {_seed_text(seeds)})", "",
-             "| method | reached 64 | interactions to 64: median (range) | median / limit | crashes | world states | "
-             "transitions | generations | CPU s per lifetime |", "|---|---|---|---|---|---|---|---|---|"]
+             "| method | reached 64 | interactions to 64: median (range) | quartiles | median / limit | crashes | "
+             "world states | transitions | generations | CPU s per lifetime |", "|---|---|---|---|---|---|---|---|---|---|"]
     for row in rows:
         st = report["methods"][row]
-        cells = [f"{st['reached_64']}/{st['seeds_run']}", _fmt(st["interactions"]), _over_limit(st),
+        cells = [f"{st['reached_64']}/{st['seeds_run']}", _fmt(st["interactions"]),
+                 _fmt_quartiles(st["interactions"]), _over_limit(st),
                  _fmt(st["crashes"]), _fmt(st["world_states"]), _fmt(st["transitions"]), _fmt(st["generations"]),
                  _fmt(st["cpu_s"])]
         lines.append(f"| {display_name(row)} | " + " | ".join(cells) + " |")
     if limit:
-        lines.append(f"| the limit (omniscient planner, noise-free) | yes | {limit['interactions']:,} | 1.0 | 0 | - | - "
-                     "| - | - |")
+        lines.append(f"| the limit (omniscient planner, noise-free) | yes | {limit['interactions']:,} | - | 1.0 | 0 | "
+                     "- | - | - | - |")
     for name, paper in (("paper, on-line", PAPER["online"]), ("paper, off-line", PAPER["offline"])):
-        lines.append(f"| {name} | yes | {paper['interactions']:,} | - | - | {paper['world_states']} | "
+        lines.append(f"| {name} | yes | {paper['interactions']:,} | - | - | - | {paper['world_states']} | "
                      f"{paper['transitions']} | {paper['generations']} | - |")
     fewer = [f"{display_name(r)}: {report['methods'][r]['seeds_run']}" for r in rows
              if report["methods"][r]["seeds_run"] < len(seeds)]
@@ -136,9 +195,12 @@ def markdown(report: dict) -> str:
                   "lower bounds): " + "; ".join(
                       f"{display_name(r)}: " + ", ".join(f"seed {s} at {t}" for s, t in sorted(c.items()))
                       for r, c in ((r, capped[r]) for r in _row_order(capped)))]
-    tuning = report.get("tuning")
-    if tuning:
-        lines += ["", "Seeds: reported " + _seed_text(seeds) + ". " + tuning]
+    provenance = report.get("seed_provenance")
+    if provenance:
+        lines += ["", "## Seeds: which chose the settings, which report them", "",
+                  f"Reported: seeds {_seed_text(seeds)}."] + [f"- {line}" for line in provenance]
+    if report.get("box_plot"):
+        lines += ["", f"Box plots per method (interactions, targets reached): `{report['box_plot']}`."]
     lines += ["", "Every motion executed in the noisy world is one interaction (exploration included); the "
               "reflex drives the four obstacle-free states in every method. 'shaped': the reward adds the "
               "progress towards the ball, a distance the 8-bit state does not contain (peers/lifetime.py); "

@@ -76,6 +76,8 @@ from cosim.compare.report import (  # noqa: F401  (re-exported: the names of cos
     build_report,
     display_name,
     markdown,
+    seed_provenance,
+    write_boxplot,
     write_plot,
 )
 
@@ -253,6 +255,7 @@ def render_only(path: Path) -> int:
         text = markdown(report)
         atomic_write_text(Path(path).parent / "compare.md", text)
         write_plot(report, Path(path).parent / "compare.png")
+        write_boxplot(report, Path(path).parent / "compare_box.png")
     print(text)
     return 0
 
@@ -346,18 +349,8 @@ def _compare(args, folder: Path) -> dict:
         add_limit(report, course_limit(args.arena, cache))
     report["online_distance_rule"] = args.distance
     report["online_options"] = online
-    from peers.deep import TUNED as DEEP_TUNED
-    from peers.tabular import TUNED, TUNING_SEEDS
-
-    if any(r.partition("/")[0] in TABULAR + DEEP for r in results):
-        used = sorted(set(seeds) & set(TUNING_SEEDS))
-        report["tuning"] = (f"The tabular learners' hyper-parameters were chosen on seeds {_seed_text(TUNING_SEEDS)} "
-                            f"(experiments/tune_tabular.py){'' if TUNED else ' -- not yet run: defaults'}; "
-                            + (f"**seeds {used} were used for tuning**." if used else
-                               "none of the reported seeds was.") +
-                            " DQN and PPO: stable-baselines3's defaults with the settings in peers/deep.py, their "
-                            "learning rate (and DQN's exploration fraction) chosen on the same seeds "
-                            "(experiments/tune_deep.py)" + ("" if DEEP_TUNED else " -- not yet run") + ".")
+    report["seed_provenance"] = seed_provenance(results, seeds)
+    report["box_plot"] = "compare_box.png"
     if args.blind_bit is not None:
         rows = []
         for s in seeds:
@@ -378,5 +371,6 @@ def _compare(args, folder: Path) -> dict:
     text = markdown(report)
     atomic_write_text(folder / "compare.md", text)
     write_plot(report, folder / "compare.png")
+    write_boxplot(report, folder / "compare_box.png")
     print(text)
     return report
