@@ -185,7 +185,7 @@ def test_compare_shows_each_median_over_the_limit(tmp_path, monkeypatch):
     report = add_limit(build_report({"baseline": {1: lifetime}}, "tiny", [1]), first)
     assert report["methods"]["baseline"]["median_over_limit"] == 2.0
     text = markdown(report)
-    assert "| reactive baseline | 1/1 | 1,536 | 2.0 |" in text
-    assert "| the limit (omniscient planner, noise-free) | yes | 768 | 1.0 |" in text
+    assert "| reactive baseline | 1/1 | 1,536 | 1,536-1,536 | 2.0 |" in text
+    assert "| the limit (omniscient planner, noise-free) | yes | 768 | - | 1.0 |" in text
     write_plot(report, tmp_path / "compare.png")
     assert (tmp_path / "compare.png").stat().st_size > 10_000

@@ -139,6 +139,9 @@ def test_offline_and_compare_reports(tmp_path):
         "per_seed": {m: {"1": {"interactions": 700, "targets_reached": 64}, "2": {"interactions": 900,
                                                                                    "targets_reached": 60}}
                      for m in ("baseline", "q-learning/shaped")}}))
+    from cosim.compare.report import write_boxplot
+
+    assert write_boxplot(json.loads((cmp / "compare.json").read_text()), cmp / "compare_box.png")
     html = write_report(cmp, progress=False).read_text()
     assert "q-learning/shaped" in html and "800 [700, 900]" in html and 'alt="box plots"' in html
 

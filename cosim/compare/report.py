@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from base.files import atomic_savefig, atomic_write_bytes
+from base.files import atomic_savefig
 from cosim.paper import PAPER_OFFLINE, PAPER_ONLINE
 
 PAPER = {"online": PAPER_ONLINE, "offline": PAPER_OFFLINE}
@@ -137,15 +137,39 @@ def seed_provenance(rows, seeds: list[int]) -> list[str]:
 
 
 def write_boxplot(report: dict, path: Path) -> Path | None:
-    """The box plots of each method's interactions and targets reached over the seeds
-    (``cosim.report.figures.compare_boxplot``), as ``path``; None when no row has a lifetime."""
-    from cosim.report.figures import compare_boxplot
+    """Per method (top to bottom in the table's order): the interactions of each seed's lifetime
+    and its targets reached, as box plots (the box: the quartiles; the line: the median; the
+    whiskers: 1.5 interquartile ranges), as ``path``; None when no row has a lifetime. The
+    report (``cosim.report.html``) embeds this file."""
+    from sim_world.render import _plt
 
-    png = compare_boxplot(report, labels={row: display_name(row) for row in report["methods"]},
-                          order=_row_order(report["methods"]))
-    if png is None:
+    per_seed = report.get("per_seed") or {}
+    rows = [r for r in _row_order(per_seed) if any(v.get("interactions") is not None for v in per_seed[r].values())]
+    if not rows:
         return None
-    return atomic_write_bytes(path, png)
+    rows = rows[::-1]  # matplotlib draws the first box at the bottom
+    plt = _plt()
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 0.5 * len(rows) + 2), dpi=110)
+    inter = [[v["interactions"] for v in per_seed[r].values() if v.get("interactions") is not None] for r in rows]
+    targets = [[v.get("targets_reached", len(v.get("target_interactions") or [])) for v in per_seed[r].values()]
+               for r in rows]
+    names = [display_name(r) for r in rows]
+    a1.boxplot(inter, orientation="horizontal", tick_labels=names)
+    a1.set_xscale("log")
+    a1.set_xlabel("interactions per lifetime (log)")
+    a2.boxplot(targets, orientation="horizontal", tick_labels=names)
+    a2.tick_params(axis="y", labelleft=False)  # the same rows as on the left
+    a2.set_xlabel("targets reached")
+    a1.tick_params(axis="y", labelsize=7)
+    for ax in (a1, a2):
+        ax.grid(alpha=0.3)
+    fig.suptitle(f"every method over seeds {_seed_text(report.get('seeds') or [])} (box: quartiles, line: median)",
+                 fontsize=10)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    atomic_savefig(fig, path)
+    plt.close(fig)
+    return path
 
 
 def _over_limit(stats: dict) -> str:

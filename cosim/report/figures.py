@@ -115,34 +115,3 @@ def truth_table(genome_hex: str, reflex: bool, visited: np.ndarray | None = None
     ax.set_xlabel("sensor input x7..x0 (x7 x6: the ball's sector; x5..x0: obstacles); red: met in the run")
     ax.set_title("truth table of the evolved controller" + (" (with the reflex)" if reflex else ""), fontsize=9)
     return _png(fig)
-
-
-def compare_boxplot(compare: dict, labels: dict | None = None, order: list | None = None) -> bytes | None:
-    """Per method: the interactions of each seed's lifetime and its targets reached, as box plots
-    (the box: the quartiles; the line: the median; the whiskers: 1.5 interquartile ranges).
-    ``labels`` maps a row to its display name, ``order`` gives the rows top to bottom."""
-    per_seed = compare.get("per_seed") or {}
-    rows = [r for r in (order or per_seed) if r in per_seed
-            and any(v.get("interactions") is not None for v in per_seed[r].values())]
-    if not rows:
-        return None
-    rows = rows[::-1]  # matplotlib draws the first box at the bottom
-    plt = _plt()
-    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 0.5 * len(rows) + 2))
-    inter = [[v["interactions"] for v in per_seed[r].values() if v.get("interactions") is not None] for r in rows]
-    targets = [[v.get("targets_reached", len(v.get("target_interactions") or [])) for v in per_seed[r].values()]
-               for r in rows]
-    names = [(labels or {}).get(r, r) for r in rows]
-    a1.boxplot(inter, orientation="horizontal", tick_labels=names)
-    a1.set_xscale("log")
-    a1.set_xlabel("interactions per lifetime (log)")
-    a2.boxplot(targets, orientation="horizontal", tick_labels=names)
-    a2.tick_params(axis="y", labelleft=False)  # the same rows as on the left
-    a2.set_xlabel("targets reached")
-    a1.tick_params(axis="y", labelsize=7)
-    for ax in (a1, a2):
-        ax.grid(alpha=0.3)
-    seeds = compare.get("seeds") or []
-    fig.suptitle("every method over " + (f"seeds {min(seeds)}-{max(seeds)}" if len(seeds) > 1 else "the seeds")
-                 + " (box: quartiles, line: median)", fontsize=10)
-    return _png(fig)

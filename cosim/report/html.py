@@ -168,7 +168,10 @@ def _compare_context(run_dir: Path, compare: dict) -> dict:
         markdown = (run_dir / "compare.md").read_text()
     except OSError:
         markdown = ""
-    box = figures.compare_boxplot(compare)
+    try:  # cosim.compare.report.write_boxplot's figure, beside compare.json
+        box = (run_dir / "compare_box.png").read_bytes()
+    except OSError:
+        box = None
     seeds = compare.get("seeds") or []
     return {"title": f"Every method over {len(seeds)} seeds, arena {compare.get('arena')!r}",
             "compare_rows": rows, "compare_columns": [c.replace("_", " ") for c in COMPARE_COLUMNS],
