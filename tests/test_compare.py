@@ -85,6 +85,8 @@ def test_the_table_says_which_seeds_chose_the_settings():
     online, tabular = report["seed_provenance"]
     assert "seeds 1..280" in online and "**reported seeds 1 were among them**" in online
     assert "1001..1003" in tabular and "**reported seeds 1001 were among them**" in tabular
+    assert "not tuned" not in tabular
+    assert "not tuned, `peers.tabular.DEFAULTS`: Dyna-Q+, shaped" in seed_provenance({"dyna-q+/shaped": {}}, [1])[0]
     clean = seed_provenance(results, [281, 282])
     assert all("none of the reported seeds was" in line for line in clean)
 

@@ -125,9 +125,11 @@ def seed_provenance(rows, seeds: list[int]) -> list[str]:
         lines.append(f"Reactive baseline: its table was tuned on every leg of the default arena's noise seeds "
                      f"{_seed_text(noise)} (`sim_world.baseline.TUNING_RUNS`); {_overlap(seeds, noise)}.")
     if methods & set(TABULAR):
+        untuned = sorted(display_name(r) for r in rows if r.partition("/")[0] in TABULAR
+                         and tuple(r.split("/")) not in TUNED)
         lines.append(f"Tabular peers: hyper-parameters chosen on seeds {_seed_text(list(TUNING_SEEDS))} "
-                     f"(`peers.tabular.TUNED`{'' if TUNED else ': not yet run, defaults'}; "
-                     f"experiments/tune_tabular.py); {_overlap(seeds, TUNING_SEEDS)}.")
+                     f"(`peers.tabular.TUNED`; experiments/tune_tabular.py); {_overlap(seeds, TUNING_SEEDS)}"
+                     + (f"; not tuned, `peers.tabular.DEFAULTS`: {', '.join(untuned)}" if untuned else "") + ".")
     if methods & set(DEEP):
         lines.append(f"DQN and PPO: stable-baselines3's defaults with peers/deep.py's settings, the learning rate "
                      f"(and DQN's exploration fraction) chosen on seeds {_seed_text(list(TUNING_SEEDS))} "
