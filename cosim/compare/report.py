@@ -118,8 +118,9 @@ def seed_provenance(rows, seeds: list[int]) -> list[str]:
                      f"{_seed_text(list(CHOSEN_ON_SEEDS))} (`cosim.online.config.CHOSEN_ON_SEEDS`); "
                      f"{_overlap(seeds, CHOSEN_ON_SEEDS)}.")
     if "offline" in methods:
-        lines.append("Off-line model-free: the paper's method with SPEC section 7's parameters (docs/offline.md), "
-                     "not tuned on seeds.")
+        lines.append("Off-line model-free: the paper's GA; the parameters it leaves open (the directed mutation's "
+                     "rate, the leg limit) were chosen on a few low seeds (docs/research-log.md, off-line rounds, "
+                     "'The paper's method').")
     if "baseline" in methods:
         noise = sorted({s for arena, noise, s in TUNING_RUNS if arena == "default" and noise is not None})
         lines.append(f"Reactive baseline: its table was tuned on every leg of the default arena's noise seeds "
@@ -136,6 +137,9 @@ def seed_provenance(rows, seeds: list[int]) -> list[str]:
                      f"(experiments/tune_deep.py{'' if DEEP_TUNED else ': not yet run'}); "
                      f"{_overlap(seeds, TUNING_SEEDS)}.")
     return lines
+
+
+BOX_PLOT = "compare_box.png"  # write_boxplot's file beside compare.json (cosim.report.html embeds it)
 
 
 def write_boxplot(report: dict, path: Path) -> Path | None:

@@ -75,6 +75,7 @@ from cosim.compare.report import (  # noqa: F401  (re-exported: the names of cos
     add_limit,
     build_report,
     display_name,
+    BOX_PLOT,
     markdown,
     seed_provenance,
     write_boxplot,
@@ -255,7 +256,7 @@ def render_only(path: Path) -> int:
         text = markdown(report)
         atomic_write_text(Path(path).parent / "compare.md", text)
         write_plot(report, Path(path).parent / "compare.png")
-        write_boxplot(report, Path(path).parent / "compare_box.png")
+        write_boxplot(report, Path(path).parent / BOX_PLOT)
     print(text)
     return 0
 
@@ -286,7 +287,7 @@ def run_from_args(args) -> int:
             run_dir.discard()  # one (Ctrl-C, kill) stays, for --resume
             raise
         run_dir.remove_stale()
-    print(f"wrote {folder / 'compare.md'}, {folder / 'compare.json'} and {folder / 'compare.png'} "
+    print(f"wrote {folder / 'compare.md'}, {folder / 'compare.json'}, {folder / 'compare.png'} and {BOX_PLOT} "
           f"({report['wall_time_s']:.0f} s)")
     return 0
 
@@ -350,7 +351,7 @@ def _compare(args, folder: Path) -> dict:
     report["online_distance_rule"] = args.distance
     report["online_options"] = online
     report["seed_provenance"] = seed_provenance(results, seeds)
-    report["box_plot"] = "compare_box.png"
+    report["box_plot"] = BOX_PLOT
     if args.blind_bit is not None:
         rows = []
         for s in seeds:
@@ -371,6 +372,6 @@ def _compare(args, folder: Path) -> dict:
     text = markdown(report)
     atomic_write_text(folder / "compare.md", text)
     write_plot(report, folder / "compare.png")
-    write_boxplot(report, folder / "compare_box.png")
+    write_boxplot(report, folder / BOX_PLOT)
     print(text)
     return report
