@@ -12,7 +12,7 @@ from base.errors import UserError
 from cosim.cli.main import main
 from cosim.cli.tune import parse_seeds
 from cosim.compare.run import make_tasks
-from cosim.compare.tune import CAP, SPACES, study_name, to_64, trial_tasks, tune
+from cosim.compare.tune import CAP, SPACES, incumbent, study_name, to_64, trial_tasks, tune
 from peers.tabular import DEFAULTS, LearnerConfig
 
 
@@ -71,7 +71,25 @@ def test_a_study_is_seeded_stored_and_resumed(tmp_path):
     again = tune("q-learning", [1001], 2, out=tmp_path / "b", **kw)
     assert again["trials"] == first["trials"]
     other = tune("q-learning", [1001], 2, out=tmp_path / "c", sampler_seed=5, **kw)
-    assert other["trials"][0]["params"] != first["trials"][0]["params"]
+    assert other["trials"][0]["params"] == first["trials"][0]["params"]  # the incumbent
+    assert other["trials"][1]["params"] != first["trials"][1]["params"]
+
+
+def test_every_study_starts_from_the_settings_compared_today(tmp_path):
+    report = tune("q-learning", [1001], 1, out=tmp_path, jobs=1, progress=False, cache_root=tmp_path / "cache")
+    assert report["trials"][0]["params"] == {"alpha": 1.0, "gamma": 0.9, "epsilon": 0.02, "q_init": 0.0}
+    assert report["incumbent"]["trial"] == 0
+    for method in SPACES:
+        for shaping in ("shaped", "unshaped"):
+            current = incumbent(method, shaping)
+            trial = optuna.create_study().ask()
+            SPACES[method](trial)
+            assert current.keys() == trial.distributions.keys()
+            for name, dist in trial.distributions.items():  # inside the searched range
+                assert dist._contains(dist.to_internal_repr(current[name])), (method, name, current[name])
+    from cosim.online.config import OnlineConfig
+
+    assert incumbent("online", "shaped")["progress_weight"] == OnlineConfig().progress_weight
 
 
 def test_an_interrupted_trial_runs_again_with_its_settings(tmp_path):

@@ -80,6 +80,27 @@ def _online_space(trial) -> dict:
 SPACES = {"online": _online_space, **{m: _tabular_space(m) for m in TABULAR}, "dqn": _dqn_space, "ppo": _ppo_space}
 
 
+def incumbent(method: str, shaping: str) -> dict:
+    """The settings ``ehw compare`` runs today, in the space's names: every study's first trial, so a
+    study's best is never worse on the tuning seeds than what it replaces."""
+    import optuna
+
+    names = SPACES[method](optuna.create_study().ask()).keys()
+    if method == "online":
+        from cosim.online.config import OnlineConfig
+
+        current = dataclasses.asdict(OnlineConfig())
+    elif method in TABULAR:
+        from peers.tabular import tuned_config
+
+        current = dataclasses.asdict(tuned_config(method, shaping))
+    else:
+        from peers.deep import HYPER, TUNED
+
+        current = {**HYPER[method], **TUNED.get((method, shaping), {})}
+    return {name: current[name] for name in names}
+
+
 def study_name(method: str, shaping: str, seeds) -> str:
     """The study's name: method, reward (peers) and tuning seeds (another seed set: another study)."""
     return f"{method}{'' if method == 'online' else '/' + shaping} seeds {','.join(map(str, seeds))}"
@@ -143,6 +164,8 @@ def tune(method: str, seeds, trials: int, *, shaping: str = "shaped", arena: str
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     study = optuna.create_study(study_name=name, storage=storage, direction="minimize", load_if_exists=True,
                                 sampler=optuna.samplers.TPESampler(seed=sampler_seed))
+    if not study.trials:
+        study.enqueue_trial(incumbent(method, shaping), user_attrs={"incumbent": True})
     requeue_failed(study)
     cache = Cache(cache_root or COMPARE_ROOT / "cache")
     lifetimes = str(out / "lifetimes")  # the on-line lifetimes' folders (checkpoints)
@@ -184,6 +207,7 @@ def study_report(study, method: str, shaping: str, seeds, trials: int, sampler_s
 
     complete = [t for t in study.trials if t.state == optuna.trial.TrialState.COMPLETE]
     best = min(complete, key=lambda t: (t.value, t.number)) if complete else None
+    first = next((t for t in complete if t.user_attrs.get("incumbent")), None)
     return {
         "method": method, "shaping": None if method == "online" else shaping, "study": study.study_name,
         "sampler": f"TPE (optuna {optuna.__version__}), seed {sampler_seed}", "tuning_seeds": list(seeds),
@@ -191,6 +215,8 @@ def study_report(study, method: str, shaping: str, seeds, trials: int, sampler_s
         "objective": f"median interactions to {N_TARGETS} targets over the tuning seeds (capped at {CAP:,})",
         "best": None if best is None else {"trial": best.number, "median": best.value, "params": best.params,
                                            "per_seed": best.user_attrs.get("per_seed")},
+        "incumbent": None if first is None else {"trial": first.number, "median": first.value,
+                                                 "params": first.params, "per_seed": first.user_attrs.get("per_seed")},
         "trials": [{"trial": t.number, "median": t.value, "params": t.params,
                     "per_seed": t.user_attrs.get("per_seed")} for t in complete],
     }
@@ -204,4 +230,6 @@ def report_text(report: dict) -> str:
         return "\n".join(lines + ["no finished trial"])
     lines.append(f"best: trial {best['trial']}, median {best['median']:,.0f} (per seed {best['per_seed']})")
     lines += [f"  {k} = {v:.6g}" if isinstance(v, float) else f"  {k} = {v}" for k, v in best["params"].items()]
+    if report.get("incumbent"):
+        lines.append(f"today's settings (trial {report['incumbent']['trial']}): median {report['incumbent']['median']:,.0f}")
     return "\n".join(lines)
