@@ -24,8 +24,7 @@ reports in ``info["range_mm"]``.
 Hyper-parameters: stable-baselines3's defaults except those in ``HYPER`` (scaled to a lifetime of
 at most 100,000 steps: DQN's exploration schedule and target updates run on the default's 1M-step
 scale otherwise; set by hand), and over those the values ``TUNED`` holds per (learner, reward):
-the learning rate and DQN's exploration fraction, chosen by
-experiments/tune_deep.py on the tuning seeds (``peers.tabular.TUNING_SEEDS``, 1001-1003) only.
+chosen by ``ehw tune`` on the tuning seeds (``peers.tabular.TUNING_SEEDS``) only.
 """
 
 from __future__ import annotations
@@ -47,14 +46,18 @@ HYPER = {
     "ppo": {"n_steps": 512, "batch_size": 64, "n_epochs": 4, "gamma": 0.95, "ent_coef": 0.01},
 }
 
-# (learner, reward) -> the grid values experiments/tune_deep.py chose on the tuning seeds (median
-# interactions to 64 there: build/experiments/tuning/deep.json); HYPER alone otherwise.
+# (learner, reward) -> the values over HYPER. Shaped: the best trial of `ehw tune METHOD --trials 20`
+# on the tuning seeds (peers.tabular.TUNING_SEEDS, 1001-1005; TPE seed 0; results/tune/<method>-shaped.json;
+# docs/peers.md). Unshaped: not in that study (a deep unshaped lifetime is 20-40 CPU s, PPO's reach
+# the cap); the earlier grid's choice on seeds 1001-1003 (docs/research-log.md, "Peers").
 TUNED: dict[tuple[str, str], dict] = {
-    ("dqn", "shaped"): {"learning_rate": 0.001, "exploration_fraction": 0.02},  # median 7,888
-    ("ppo", "shaped"): {"learning_rate": 0.001},  # median 13,596
-    ("dqn", "unshaped"): {"learning_rate": 0.001, "exploration_fraction": 0.05},  # median 39,464
-    # every PPO unshaped point was capped at 100,000 on all three seeds (a tie: the first point)
-    ("ppo", "unshaped"): {"learning_rate": 0.0003},  # median 100,000 (capped)
+    # median 15,639 (trial 19; the earlier settings: 21,603)
+    ("dqn", "shaped"): {"learning_rate": 0.001523499581977857, "gamma": 0.8254843054657862, "exploration_fraction": 0.1507416933410105, "exploration_final_eps": 0.004522592873756487},
+    # median 10,548 (trial 15; the earlier settings: 14,408)
+    ("ppo", "shaped"): {"learning_rate": 0.00288948675424056, "gamma": 0.9184808180841996, "ent_coef": 0.0010599083177377235},
+    ("dqn", "unshaped"): {"learning_rate": 0.001, "exploration_fraction": 0.05},  # grid median 39,464
+    # every PPO unshaped grid point was capped at 100,000 on all three seeds (a tie: the first point)
+    ("ppo", "unshaped"): {"learning_rate": 0.0003},  # grid median 100,000 (capped)
 }
 
 

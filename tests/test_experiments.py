@@ -89,30 +89,6 @@ def test_same_lifetime_compares_field_by_field(tmp_path, capsys):
     assert "phases[0].reason: 'loop' vs 'crash'" in capsys.readouterr().out
 
 
-def test_tuning_chooses_the_lowest_median_and_the_deep_grid_is_over_hyper():
-    tune = _script("tune_tabular")
-    deep = _script("tune_deep")  # importable without the optional extra
-    from peers.deep import HYPER, TUNED, tuned_hyper
-    from peers.tabular import LearnerConfig
-
-    tasks, results = [], []
-    for point, inter in (({"lr": 1}, [10, 50, 60]), ({"lr": 2}, [30, 31, 32]), ({"lr": 3}, [30, 31, 90])):
-        for seed, n in zip((1001, 1002, 1003), inter):
-            tasks.append({"method": "dqn/shaped", "seed": seed, "config": {"hyper": point}})
-            results.append({"seed": seed, "interactions": n, "targets_reached": 64, "crashes": 0, "cpu_s": 1.0})
-    table, chosen = tune.choose(tasks, results, "hyper")
-    assert [e["median"] for e in table] == [50, 31, 31]
-    assert chosen["dqn/shaped"]["hyper"] == {"lr": 2}  # median 31 beats 50; tie 31-31: the lower mean
-    assert deep.choose(tasks, results, "hyper") == (table, chosen)  # each script's copy, one rule
-    for method in ("dqn", "ppo"):
-        points = deep.grid(method)
-        assert len(points) == {"dqn": 4, "ppo": 2}[method] and all(p.keys() == HYPER[method].keys() | deep.GRID[method].keys() for p in points)
-        for shaping in ("shaped", "unshaped"):
-            assert tuned_hyper(method, shaping) == {**HYPER[method], **TUNED.get((method, shaping), {})}
-    assert len(tune.grid("q-learning")) == 12 and all(isinstance(c, LearnerConfig) for c in tune.grid("dyna-q"))
-    assert {c.planning_steps for c in tune.grid("q-learning")} == {0}
-
-
 def test_link_bytes_tabulates_a_run_and_its_configuration_is_valid():
     """The lifetime itself needs Verilator (docs/learner.md gives its figures); its table and its
     configuration are checked here."""

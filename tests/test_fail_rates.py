@@ -221,5 +221,5 @@ def test_progress_weight_is_checked_and_rides_on_the_rate_codes():
         rate_codes(mirror_pooled(run.marks.failed), mirror_pooled(run.marks.executed)),
         mirror_pooled(run.marks.gain), mirror_pooled(run.marks.gain_n), 3.0)).all()
     plain = make_run(OnlineConfig(seed=5, progress_weight=0.0, **SMALL)).run()
-    assert plain.marks.gain_n.sum() == 0 and OnlineConfig().progress_weight == 3.0  # the default (round 18)
+    assert plain.marks.gain_n.sum() == 0 and OnlineConfig().progress_weight > 0  # on by default (round 18; tuned in issue 36)
     assert [p["best_fails"] for p in run.phases] != [p["best_fails"] for p in plain.phases]

@@ -77,7 +77,10 @@ def test_a_study_is_seeded_stored_and_resumed(tmp_path):
 
 def test_every_study_starts_from_the_settings_compared_today(tmp_path):
     report = tune("q-learning", [1001], 1, out=tmp_path, jobs=1, progress=False, cache_root=tmp_path / "cache")
-    assert report["trials"][0]["params"] == {"alpha": 1.0, "gamma": 0.9, "epsilon": 0.02, "q_init": 0.0}
+    from peers.tabular import TUNED
+
+    shipped = dataclasses.asdict(TUNED[("q-learning", "shaped")])
+    assert report["trials"][0]["params"] == {k: shipped[k] for k in ("alpha", "gamma", "epsilon", "q_init")}
     assert report["incumbent"]["trial"] == 0
     for method in SPACES:
         for shaping in ("shaped", "unshaped"):

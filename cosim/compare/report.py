@@ -114,7 +114,8 @@ def seed_provenance(rows, seeds: list[int]) -> list[str]:
     methods = {r.partition("/")[0] for r in rows}
     lines = []
     if "online" in methods:
-        lines.append(f"On-line model-based: its defaults were chosen over the rounds of docs/research-log.md on seeds "
+        lines.append(f"On-line model-based: its defaults were chosen over the rounds of docs/research-log.md and "
+                     f"by `ehw tune online` (its GA's and detectors' values) on seeds "
                      f"{_seed_text(list(CHOSEN_ON_SEEDS))} (`cosim.online.config.CHOSEN_ON_SEEDS`); "
                      f"{_overlap(seeds, CHOSEN_ON_SEEDS)}.")
     if "offline" in methods:
@@ -129,13 +130,16 @@ def seed_provenance(rows, seeds: list[int]) -> list[str]:
         untuned = sorted(display_name(r) for r in rows if r.partition("/")[0] in TABULAR
                          and tuple(r.split("/")) not in TUNED)
         lines.append(f"Tabular peers: hyper-parameters chosen on seeds {_seed_text(list(TUNING_SEEDS))} "
-                     f"(`peers.tabular.TUNED`; experiments/tune_tabular.py); {_overlap(seeds, TUNING_SEEDS)}"
+                     f"(`peers.tabular.TUNED`, `ehw tune`); {_overlap(seeds, TUNING_SEEDS)}"
                      + (f"; not tuned, `peers.tabular.DEFAULTS`: {', '.join(untuned)}" if untuned else "") + ".")
     if methods & set(DEEP):
-        lines.append(f"DQN and PPO: stable-baselines3's defaults with peers/deep.py's settings, the learning rate "
-                     f"(and DQN's exploration fraction) chosen on seeds {_seed_text(list(TUNING_SEEDS))} "
-                     f"(experiments/tune_deep.py{'' if DEEP_TUNED else ': not yet run'}); "
-                     f"{_overlap(seeds, TUNING_SEEDS)}.")
+        untuned = sorted(display_name(r) for r in rows if r.partition("/")[0] in DEEP
+                         and not DEEP_TUNED.get(tuple(r.split("/"))))
+        lines.append(f"DQN and PPO: stable-baselines3's defaults with peers/deep.py's settings; shaped: learning "
+                     f"rate, discount and exploration chosen by `ehw tune` on seeds {_seed_text(list(TUNING_SEEDS))}, "
+                     f"unshaped: the earlier grid's learning rate on 1001-1003 (`peers.deep.TUNED`); "
+                     f"{_overlap(seeds, TUNING_SEEDS)}"
+                     + (f"; not tuned: {', '.join(untuned)}" if untuned else "") + ".")
     return lines
 
 
@@ -189,10 +193,14 @@ def _row_order(rows) -> list[str]:
 
 
 def _seed_text(seeds: list[int]) -> str:
-    seeds = sorted(seeds)
-    if seeds and seeds == list(range(seeds[0], seeds[-1] + 1)):
-        return f"{seeds[0]}..{seeds[-1]}" if len(seeds) > 1 else str(seeds[0])
-    return ", ".join(map(str, seeds))
+    """Seeds as runs: 1..280, 1001..1005, 1207."""
+    runs: list[list[int]] = []
+    for seed in sorted(set(seeds)):
+        if runs and seed == runs[-1][-1] + 1:
+            runs[-1].append(seed)
+        else:
+            runs.append([seed])
+    return ", ".join(f"{r[0]}..{r[-1]}" if len(r) > 1 else str(r[0]) for r in runs)
 
 
 def markdown(report: dict) -> str:

@@ -14,10 +14,10 @@ Methods (``--methods``, default: all but the optional deep-RL ones):
   (``peers.tabular``) in one lifetime under the on-line protocol (``peers.lifetime``), once per
   ``--shaping`` (``unshaped``: target, crash and step rewards only; ``shaped``: plus the progress
   towards the ball by the camera's noisy range, SPEC section 4, which the 8-bit state does not contain). Hyper-parameters: ``peers.tabular.TUNED``,
-  chosen by experiments/tune_tabular.py on its tuning seeds.
+  chosen by ``ehw tune`` (``cosim.compare.tune``) on ``peers.tabular.TUNING_SEEDS``.
 * ``dqn``, ``ppo`` (optional, ``pip install .[rl]``): stable-baselines3 on the Gymnasium env
   (``peers.deep``), under the same protocol, every environment step counted. Hyper-parameters:
-  ``peers.deep.tuned_hyper``, chosen by experiments/tune_deep.py on the same tuning seeds.
+  ``peers.deep.tuned_hyper``, chosen by ``ehw tune`` on the same tuning seeds (shaped).
 
 The lifetimes run through one executor (``cosim.compare.sweep``): a local process pool of ``--jobs``
 workers, or a Dask cluster (``--cluster local`` starts one on the loopback interface,
