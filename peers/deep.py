@@ -24,7 +24,8 @@ reports in ``info["range_mm"]``.
 Hyper-parameters: stable-baselines3's defaults except those in ``HYPER`` (scaled to a lifetime of
 at most 100,000 steps: DQN's exploration schedule and target updates run on the default's 1M-step
 scale otherwise; set by hand), and over those the values ``TUNED`` holds per (learner, reward):
-chosen by ``ehw tune`` on the tuning seeds (``peers.tabular.TUNING_SEEDS``) only.
+shaped, chosen by ``ehw tune`` on the tuning seeds (``peers.tabular.TUNING_SEEDS``) only; unshaped,
+the earlier grid's learning rate on seeds 1001-1003.
 """
 
 from __future__ import annotations
