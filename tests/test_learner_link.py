@@ -13,6 +13,7 @@ import json
 import numpy as np
 import pytest
 from link_sim import AmaranthSerial
+from pre_tuning import pre_tuning
 
 from cosim.boards.reference import ReferenceLearningBoard
 from cosim.link.boards import LinkControllerBoard
@@ -126,9 +127,10 @@ def test_serial_learning_board_errors_name_the_port(monkeypatch):
 # -- the learning board in the on-line run: the uart and serial backends (make_run) ---------------
 
 # A short --ga hardware lifetime with the failure rates (2 targets, population 6, 2 lanes, 2
-# generations a phase).
-SHORT = OnlineConfig(seed=1, ga="hardware", arena="one_obstacle", n_targets=2, population=6, tournament=2,
-                     lanes=2, generations_per_phase=2, fail_rates=True)
+# generations a phase: 3 learning phases after a crash and loops, 6 generations), the GA's rates of
+# before issue 36's tuning (seed 94 since then: seed 1 took 132 generations).
+SHORT = OnlineConfig(**pre_tuning(seed=94, ga="hardware", arena="one_obstacle", n_targets=2, population=6,
+                                  tournament=2, lanes=2, generations_per_phase=2, fail_rates=True))
 
 
 def _comparable(summary: dict) -> dict:
