@@ -36,6 +36,7 @@ from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
 from base.errors import UserError
+from hdl.ecp5_models import ecp5_extra_models
 
 NETLIST_ROOT = Path("build/gatesim")
 # The two iCEBreakers of the paper's two-board arrangement, simulated side by side.
@@ -92,7 +93,8 @@ def cell_models(workdir: Path, family: str, simulator: str = "icarus") -> list[P
     :func:`simulator_flags`). ECP5: share/lattice/cells_sim_ecp5.v, whose included common_sim.vh
     has a ``$error`` in a generate branch (a syntax error to Icarus 11: copied into ``workdir``
     with that line commented out) and includes cells_ff.vh and cells_io.vh a second time
-    (-DNO_INCLUDES, and both given once); plus :data:`ECP5_EXTRA_MODELS`. For Verilator, copies
+    (-DNO_INCLUDES, and both given once), without its DP16KD, a black box there; plus
+    :func:`hdl.ecp5_models.ecp5_extra_models` (DP16KD, SGSR, MULT18X18D). For Verilator, copies
     without the tristate tests (``_ICE40_VERILATOR``, ``_ECP5_VERILATOR``)."""
     share = yowasp_share()
     workdir.mkdir(parents=True, exist_ok=True)
@@ -106,51 +108,62 @@ def cell_models(workdir: Path, family: str, simulator: str = "icarus") -> list[P
     if family != "ecp5":
         raise GateSimError(f"no cell models for FPGA family {family!r}; known: ice40, ecp5")
     lattice = share / "lattice"
-    (workdir / "ecp5_extra_sim.v").write_text(ECP5_EXTRA_MODELS)
+    (workdir / "ecp5_extra_sim.v").write_text(ecp5_extra_models())
     no_error = {'$error("unsupported COMB mode': '// $error("unsupported COMB mode'}
     (workdir / "common_sim.vh").write_text(_patched(lattice / "common_sim.vh",
                                                     {**no_error, **(_ECP5_VERILATOR if verilator else {})}))
     (workdir / "ccu2c_sim.vh").write_text((lattice / "ccu2c_sim.vh").read_text())
     top = workdir / "cells_sim_ecp5.v"
-    top.write_text((lattice / "cells_sim_ecp5.v").read_text())
+    top.write_text(_without_module((lattice / "cells_sim_ecp5.v").read_text(), "DP16KD"))  # a black box there
     return [top, lattice / "cells_ff.vh", lattice / "cells_io.vh", workdir / "ecp5_extra_sim.v"]
 
 
-# Two ECP5 cells the wheel has only as black boxes (lattice/cells_bb_ecp5.v), modelled here:
-# - SGSR, the synchronous global set/reset that Amaranth's ECP5 platform drives from its reset
-#   synchroniser: every flip-flop model starts at its initial value (the power-up reset, PUR)
-#   and the synchroniser releases GSR two cycles after configuration, so the model does nothing;
-# - MULT18X18D in the only mode Yosys's DSP mapping gives it here: every register bypassed
-#   (REG_*_CLK = "NONE"), P = A x B, signed as SIGNEDA / SIGNEDB say. Any other mode stops the
-#   simulation at time 0.
-ECP5_EXTRA_MODELS = r"""
-module SGSR(input GSR, input CLK);
-endmodule
+def _without_module(verilog: str, name: str) -> str:
+    """``verilog`` without module ``name`` (and the attribute line before it)."""
+    found = re.search(rf"^(?:\(\*[^\n]*\*\)\s*\n)?module\s+{name}\b.*?^endmodule\s*$", verilog, re.M | re.S)
+    if found is None:
+        raise GateSimError(f"the cell models have changed: no module {name} to replace")
+    return verilog[:found.start()] + verilog[found.end():]
 
-module MULT18X18D #(
-    parameter REG_INPUTA_CLK = "NONE", parameter REG_INPUTB_CLK = "NONE",
-    parameter REG_INPUTC_CLK = "NONE", parameter REG_PIPELINE_CLK = "NONE",
-    parameter REG_OUTPUT_CLK = "NONE"
-) (
-    input A0, A1, A2, A3, A4, A5, A6, A7, A8, A9, A10, A11, A12, A13, A14, A15, A16, A17,
-    input B0, B1, B2, B3, B4, B5, B6, B7, B8, B9, B10, B11, B12, B13, B14, B15, B16, B17,
-    input C0, C1, C2, C3, C4, C5, C6, C7, C8, C9, C10, C11, C12, C13, C14, C15, C16, C17,
-    input SIGNEDA, SIGNEDB, SOURCEA, SOURCEB,
-    output P0, P1, P2, P3, P4, P5, P6, P7, P8, P9, P10, P11, P12, P13, P14, P15, P16, P17,
-    output P18, P19, P20, P21, P22, P23, P24, P25, P26, P27, P28, P29, P30, P31, P32, P33, P34, P35
-);
-    initial if (REG_INPUTA_CLK != "NONE" || REG_INPUTB_CLK != "NONE" || REG_INPUTC_CLK != "NONE"
-                || REG_PIPELINE_CLK != "NONE" || REG_OUTPUT_CLK != "NONE")
-        $fatal(1, "MULT18X18D: only the unregistered mode is modelled");
-    wire [17:0] a = {A17, A16, A15, A14, A13, A12, A11, A10, A9, A8, A7, A6, A5, A4, A3, A2, A1, A0};
-    wire [17:0] b = {B17, B16, B15, B14, B13, B12, B11, B10, B9, B8, B7, B6, B5, B4, B3, B2, B1, B0};
-    wire [35:0] a_ext = {{18{SIGNEDA & a[17]}}, a};
-    wire [35:0] b_ext = {{18{SIGNEDB & b[17]}}, b};
-    wire [35:0] p = a_ext * b_ext;
-    assign {P35, P34, P33, P32, P31, P30, P29, P28, P27, P26, P25, P24, P23, P22, P21, P20, P19, P18,
-            P17, P16, P15, P14, P13, P12, P11, P10, P9, P8, P7, P6, P5, P4, P3, P2, P1, P0} = p;
-endmodule
-"""
+
+_NOT_CELLS = {"module", "input", "output", "inout", "wire", "reg", "assign", "always", "initial", "endmodule",
+              "parameter", "localparam", "integer", "genvar", "function", "endfunction", "begin", "end", "if",
+              "else", "case", "endcase", "default", "for"}
+
+
+def netlist_cells(verilog: str) -> set[str]:
+    """The cell types a ``write_verilog`` netlist instantiates."""
+    found = re.findall(r"^\s*([A-Za-z_][\w$]*)\s+(?:#\s*\(|\\?[\w$.\[\]]+\s*\()", verilog, re.M)
+    modules = set(re.findall(r"^\s*module\s+([\w$]+)", verilog, re.M))
+    return {cell for cell in found if cell not in _NOT_CELLS and cell not in modules}
+
+
+def modelled_cells(models: list[Path]) -> set[str]:
+    """The modules ``models`` define with a behaviour (not those marked ``(* blackbox *)``), their
+    included files read as well."""
+    cells: set[str] = set()
+    seen: set[Path] = set()
+    todo = [Path(m) for m in models]
+    while todo:
+        path = todo.pop()
+        if path in seen or not path.exists():
+            continue
+        seen.add(path)
+        text = path.read_text(errors="replace")
+        todo += [path.parent / inc for inc in re.findall(r'^\s*`include\s+"([^"]+)"', text, re.M)]
+        for attr, name in re.findall(r"^(\(\*[^\n]*\*\)\s*\n)?\s*module\s+([\w$]+)", text, re.M):
+            if "blackbox" not in attr:
+                cells.add(name)
+    return cells
+
+
+def check_modelled(netlist: Path | str, models: list[Path]) -> None:
+    """Refuse a netlist with a cell that ``models`` do not model: it would simulate as a black
+    box (outputs undriven, 0 in Verilator) and prove nothing."""
+    missing = sorted(netlist_cells(Path(netlist).read_text()) - modelled_cells(models))
+    if missing:
+        raise GateSimError(f"{Path(netlist).name}: no simulation model of cell(s) {', '.join(missing)} "
+                           f"(the wheel has only black boxes; add them to hdl/ecp5_models.py)")
 
 
 def simulator_flags(family: str, simulator: str = "icarus") -> tuple[str, ...]:
@@ -318,5 +331,6 @@ def harness_verilog(netlists: dict, name: str) -> str:
     return time_zero_fix(verilog.convert(top, name=name, emit_src=False))
 
 
-__all__ = ["GateNetlist", "GateSimError", "NETLIST_ROOT", "NetlistTop", "PAIR", "PairHarness",
-           "cell_models", "harness_verilog", "module_name", "simulator_flags", "synthesize"]
+__all__ = ["GateNetlist", "GateSimError", "NETLIST_ROOT", "NetlistTop", "PAIR", "PairHarness", "cell_models",
+           "check_modelled", "harness_verilog", "modelled_cells", "module_name", "netlist_cells",
+           "simulator_flags", "synthesize"]

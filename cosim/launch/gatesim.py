@@ -89,7 +89,7 @@ def run_gatesim(target: str, *, config=None, genomes: int = 3, states: int = 24,
     check, the simulation itself slower)."""
     from cosim.boards.cocotb_run import REPO_ROOT, CocotbFailure, run_cocotb
     from cosim.link.simulated import host_timeout_s
-    from hdl.gatesim import cell_models, harness_verilog, simulator_flags, synthesize
+    from hdl.gatesim import check_modelled, cell_models, harness_verilog, simulator_flags, synthesize
     from hdl.system_top import P_MAX
     from hdl.uart import uart_divisor
 
@@ -105,6 +105,8 @@ def run_gatesim(target: str, *, config=None, genomes: int = 3, states: int = 24,
     harness.write_text(harness_verilog(netlists, TOPLEVEL))
     # a folder of their own: Yosys would take a copied .vh in its working folder for its own
     models = cell_models(first.directory / "cells", first.family, simulator)
+    for netlist in netlists.values():  # a cell without a model would simulate as a black box
+        check_modelled(netlist.path, models)
     sources = [harness, *[Path(n.path) for n in netlists.values()], *models]
     includes = [f"-I{d}" for d in dict.fromkeys([first.directory, *(Path(m).parent for m in models)])]
     options = {"out": str(out), "target": target, "roles": list(netlists), "progress": progress,
