@@ -8,7 +8,7 @@ import time
 import numpy as np
 import pymunk
 
-from ga.motions import OBSTACLE_MASK, REFLEX_TABLE
+from ga.motions import REFLEX_TABLE
 from sim_world.arena import ROBOT_RADIUS_MM, load_arena
 from sim_world.world import DEFAULT_NOISE, IR_SENSORS, SENSOR_REACH_MM, World
 

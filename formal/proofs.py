@@ -10,7 +10,7 @@ temporal induction, ``sat -tempinduct-baseonly`` for a bounded check).
 from __future__ import annotations
 
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 

@@ -33,7 +33,6 @@ from __future__ import annotations
 import time
 
 import gymnasium as gym
-import numpy as np
 
 from ga.motions import REFLEX_TABLE
 from peers.lifetime import MAX_INTERACTIONS, SHAPINGS, seeds

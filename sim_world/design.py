@@ -14,7 +14,6 @@ radius) blocks the straight line, plus a smaller one when the ball is not in the
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 
@@ -23,7 +22,6 @@ from sim_world.arena import (
     N_POSITIONS,
     ROBOT_RADIUS_MM,
     Arena,
-    Obstacle,
     arena_from_dict,
     save_arena,
 )

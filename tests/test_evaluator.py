@@ -8,7 +8,6 @@ from ga.evaluator import (EvalResult, evaluate_population, evaluate_python, eval
                           trace_counts)
 from ga.genome import N_ROWS
 from ga.motions import MAX_MOTION_DISTANCE_MM, MOTION_DISTANCE_MM, Motion, REFLEX_STATES, make_state
-from ga.truth_table import truth_tables
 from ga.world_model import WorldModel
 
 FREE_STATES = [int(s) for s in REFLEX_STATES]  # no obstacle bit: a self-transition is progress

@@ -32,7 +32,6 @@ from cosim.launch.lifetime import launch_env, prepare_out, print_summary, run_in
 from cosim.link.simulated import (
     LEARNER_TOPLEVEL,
     LINE_ENV,
-    LINES,
     SIM_CLK_HZ,
     TOPLEVEL,
     board_timeout_s,

@@ -52,7 +52,6 @@ from hdl.link_protocol import (
     Design,
     FrameHeader,
     Status,
-    genome_bytes,
     layout_bytes,
 )
 
