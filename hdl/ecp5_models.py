@@ -138,7 +138,7 @@ def _dp16kd() -> str:
         ports.append(f"  input {_pins('DI' + p, 18)},\n  input {_pins('AD' + p, 14)},\n"
                      f"  input CE{p}, OCE{p}, CLK{p}, WE{p}, RST{p},\n  input CS{p}2, CS{p}1, CS{p}0,\n"
                      f"  output {_pins('DO' + p, 18)}")
-    params = [f"    parameter [319:0] INITVAL_{i:02X} = 320'h0," for i in range(64)]
+    params = [f"    parameter [319:0] INITVAL_{i:02X} = 320'h0" for i in range(64)]
     init = [f"        for (i = 0; i < 16; i = i + 1) mem[{16 * k} + i] = INITVAL_{k:02X}[i * 20 +: 18];"
             for k in range(64)]
     body = []
@@ -159,8 +159,7 @@ def _dp16kd() -> str:
         '    parameter WRITEMODE_A = "NORMAL", parameter WRITEMODE_B = "NORMAL",',
         '    parameter CLKAMUX = "CLKA", parameter CLKBMUX = "CLKB",',
         '    parameter GSR = "ENABLED", parameter INIT_DATA = "STATIC", parameter WID = 0,',
-        *params,
-        "    parameter UNUSED = 0",
+        ",\n".join(params),
         ") (",
         ",\n".join(ports),
         ");",
@@ -199,8 +198,4 @@ def ecp5_extra_models() -> str:
     """The Verilog of SGSR, MULT18X18D and DP16KD (the module docstring)."""
     return _SGSR + _MULT18X18D + _dp16kd()
 
-
-# the cells ecp5_extra_models() defines (a netlist's other cells must have a model in the wheel)
-ECP5_EXTRA_CELLS = ("SGSR", "MULT18X18D", "DP16KD")
-
-__all__ = ["DP16KD_WIDTHS", "ECP5_EXTRA_CELLS", "ecp5_extra_models"]
+__all__ = ["DP16KD_WIDTHS", "ecp5_extra_models"]

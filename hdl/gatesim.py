@@ -163,7 +163,8 @@ def check_modelled(netlist: Path | str, models: list[Path]) -> None:
     missing = sorted(netlist_cells(Path(netlist).read_text()) - modelled_cells(models))
     if missing:
         raise GateSimError(f"{Path(netlist).name}: no simulation model of cell(s) {', '.join(missing)} "
-                           f"(the wheel has only black boxes; add them to hdl/ecp5_models.py)")
+                           f"(the wheel's models lack them or have only black boxes; ECP5's extra models: "
+                           f"hdl/ecp5_models.py)")
 
 
 def simulator_flags(family: str, simulator: str = "icarus") -> tuple[str, ...]:

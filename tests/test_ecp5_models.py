@@ -83,7 +83,7 @@ class Memories(wiring.Component):
             m.d.comb += rp.addr.eq(wp.addr if shared else Mux(near_r, raddr[:4], raddr))
             m.d.comb += [wp.data.eq(data), rp.en.eq(ren)]
             if granularity:
-                lanes = width // granularity  # the write enables: a lane each, from data's top bits
+                lanes = width // granularity  # the write enables: a lane each, from raddr's low bits
                 m.d.comb += wp.en.eq(Mux(we, Cat(*(raddr[k] for k in range(lanes))), 0))
             else:
                 m.d.comb += wp.en.eq(we)
