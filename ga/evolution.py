@@ -150,6 +150,8 @@ class GeneticAlgorithm:
             directed = rng.random(n) < cfg.directed_rate
             for i in np.flatnonzero(directed):
                 state = failures[parents[i, 0]]
+                if state is not None and not np.isscalar(state):  # candidates: draw one
+                    state = state[int(rng.integers(len(state)))]
                 # The reflex fixes the motion of obstacle-free states: the array cannot change it.
                 if state is not None and REFLEX_TABLE[int(state)] < 0:
                     children[i] = operators.avoid_state_motion(

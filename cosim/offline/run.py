@@ -50,6 +50,7 @@ from cosim.paper import PAPER_OFFLINE as PAPER
 from ga.evolution import GAConfig, GeneticAlgorithm
 from ga.genome import hex_from_rows, rows_from_hex, validate_rows
 from ga.model_free import N_TARGETS, max_run_steps, model_free_fitness
+from ga.motions import REFLEX_TABLE
 from ga.truth_table import truth_tables
 from sim_world.course import run_course
 
@@ -86,18 +87,28 @@ class Evaluation:
     states: frozenset  # world states met
     transitions: frozenset  # (state, motion, next state, crashed) met
     failure_state: int | None = None  # the state the run ended in, if it crashed or got stuck
+    # with directed_window > 0: the evolvable states (no reflex) among the failed leg's last motions
+    failure_candidates: tuple = ()
 
 
-def evaluate(world, rows, max_leg_steps: int, n_targets: int = N_TARGETS, reflex: bool = True) -> Evaluation:
+def evaluate(world, rows, max_leg_steps: int, n_targets: int = N_TARGETS, reflex: bool = True,
+             directed_window: int = 0) -> Evaluation:
     """Drive ``world`` (a `sim_world.world.World`) with one genome through the course and score it
-    (`ga.model_free.model_free_fitness`)."""
+    (`ga.model_free.model_free_fitness`). ``directed_window`` > 0: ``failure_candidates`` are the
+    distinct evolvable states among the failed leg's last ``directed_window`` motions and the end
+    state (the directed mutation then draws one of them)."""
     rows = validate_rows(rows)
     if rows.ndim != 1:
         raise ValueError(f"evaluate takes one genome of shape (50,), got {rows.shape!r}")
-    res = run_course(world, truth_tables(rows, reflex=reflex), max_leg_steps, n_targets=n_targets)
+    res = run_course(world, truth_tables(rows, reflex=reflex), max_leg_steps, n_targets=n_targets,
+                     trace_leg=directed_window > 0)
     # After a crash the pose is restored, so the state now is the one whose motion crashed; after
     # a time-out it is a state of the loop the robot was caught in.
     failed = res.crashed or res.timed_out
+    candidates = ()
+    if failed and directed_window > 0:
+        seen = res.leg_states[-directed_window:] + [int(world.state())]
+        candidates = tuple(sorted({int(s) for s in seen if REFLEX_TABLE[s] < 0}))
     fitness = model_free_fitness(res.targets_reached, res.final_distance_mm, world.arena.size_mm,
                                  res.steps, max_run_steps(max_leg_steps, n_targets))
     return Evaluation(
@@ -107,6 +118,7 @@ def evaluate(world, rows, max_leg_steps: int, n_targets: int = N_TARGETS, reflex
         states=frozenset(int(s) for s in res.states),
         transitions=frozenset(tuple(int(v) for v in t) for t in res.transitions),
         failure_state=int(world.state()) if failed else None,
+        failure_candidates=candidates,
     )
 
 
@@ -126,17 +138,18 @@ _load_arena = load_arena_arg
 
 
 def _evaluate_one(task) -> Evaluation:
-    arena, max_leg_steps, n_targets, rows = task
-    return evaluate(_world(arena), rows, max_leg_steps, n_targets)
+    arena, max_leg_steps, n_targets, directed_window, rows = task
+    return evaluate(_world(arena), rows, max_leg_steps, n_targets, directed_window=directed_window)
 
 
 class Evaluator:
     """Evaluates a population serially (``workers`` <= 1) or over a process pool, same result."""
 
     def __init__(self, arena: str, max_leg_steps: int, n_targets: int = N_TARGETS, workers: int = 1,
-                 cache_size: int = 4096):
+                 cache_size: int = 4096, directed_window: int = 0):
         self.cache_size = cache_size  # truth tables remembered (about 200 generations of 20)
         self.arena, self.max_leg_steps, self.n_targets = arena, max_leg_steps, n_targets
+        self.directed_window = directed_window
         self.workers = max(int(workers), 1)
         self._pool = None
         self._cache: dict[bytes, Evaluation] = {}
@@ -160,7 +173,8 @@ class Evaluator:
         for key, rows in zip(keys, pop):
             if key not in self._cache and key not in todo:
                 todo[key] = rows
-        tasks = [(self.arena, self.max_leg_steps, self.n_targets, rows) for rows in todo.values()]
+        tasks = [(self.arena, self.max_leg_steps, self.n_targets, self.directed_window, rows)
+                 for rows in todo.values()]
         if self._pool is None:
             fresh = [_evaluate_one(t) for t in tasks]
         else:
@@ -313,6 +327,7 @@ def run_offline(
     transfer_leg_steps: int = 0,
     on_generation: Callable[[dict], None] | None = None,
     noisy: NoisyStage | None = None,
+    directed_window: int = 0,
 ) -> dict:
     """Run (or, with ``resume``, continue) the model-free experiment; return the summary dict.
 
@@ -328,6 +343,8 @@ def run_offline(
     ga_config = ga_config or default_ga_config()
     noisy = DEFAULT_NOISY if noisy is None else noisy
     config = run_config(seed, arena, max_leg_steps, n_targets, ga_config, noisy)
+    if directed_window:
+        config["directed_window"] = int(directed_window)
     ck_path = out / "checkpoint.json"
     if resume and ck_path.exists():
         state = load_checkpoint(ck_path, KIND, config)
@@ -361,7 +378,7 @@ def run_offline(
     bar = tqdm(total=generations_cap, initial=min(ga.generation, generations_cap), disable=not progress,
                desc=f"model-free seed {seed}", unit="gen", dynamic_ncols=True)
     try:
-        with Evaluator(arena, max_leg_steps, n_targets, workers) as evaluator:
+        with Evaluator(arena, max_leg_steps, n_targets, workers, directed_window=directed_window) as evaluator:
             while not finished() and ga.generation < generations_cap:
                 pop = ga.ask()
                 if state["stage"] == 2:
@@ -372,7 +389,8 @@ def run_offline(
                     evals = evaluator(pop)
                     state["simulated_interactions"] += evaluator.simulated_steps - driven
                     fitness = np.array([e.fitness for e in evals], dtype=float)
-                    ga.tell(fitness, failures=[e.failure_state for e in evals])
+                    ga.tell(fitness, failures=[(e.failure_candidates or None) if directed_window else e.failure_state
+                                               for e in evals])
                     i = int(np.argmax(fitness))  # the same individual tell() took as best
                     best = evals[i]
                     for e in evals:
@@ -380,7 +398,14 @@ def run_offline(
                         transitions |= e.transitions
                     state["interactions"] += sum(e.steps for e in evals)
                     state["best"] = _best_entry(pop[i], best)
-                    entry_extra = {}
+                    # instrumentation (issue 38): how the best's run ends, and the population's
+                    # diversity (distinct truth tables; the elite and its copies count once)
+                    entry_extra = {
+                        "best_end": "crash" if best.crashed else "time-out" if best.timed_out else "done",
+                        "best_end_state": best.failure_state,
+                        "distinct_tables": len({t.tobytes() for t in truth_tables(pop, reflex=True)}),
+                        "at_best_targets": sum(e.targets_reached == best.targets_reached for e in evals),
+                    }
                     if noisy.trials and best.targets_reached >= n_targets:
                         state["stage"] = 2  # the noise-free best reaches every target: go noisy
                         state["noisy"]["from_generation"] = ga.generation + 1
