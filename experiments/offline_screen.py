@@ -14,6 +14,11 @@ VARIANTS = {
     "window16": {"directed_window": 16},
     "window32": {"directed_window": 32},
     "window16_d05": {"directed_window": 16, "ga": {"directed_rate": 0.5}},
+    "restart150": {"restart_after": 150},
+    "restart300": {"restart_after": 300},
+    "window16_restart150": {"directed_window": 16, "restart_after": 150},
+    "sectors05": {"ga": {"directed_sectors": 0.5}},
+    "sectors10": {"ga": {"directed_sectors": 1.0}},
     "half_rates": {"ga": {"literal_rate": 0.002, "output_rate": 0.002, "switch_rate": 0.005, "replace_rate": 0.0025}},
     "window16_half": {"directed_window": 16, "ga": {"literal_rate": 0.002, "output_rate": 0.002,
                                                      "switch_rate": 0.005, "replace_rate": 0.0025}},
@@ -29,7 +34,8 @@ def one(task):
     if summ.exists():
         return json.loads(summ.read_text())
     return run_offline(seed, generations_cap=cap, out=out, max_leg_steps=150, ga_config=default_ga_config(**v.get("ga", {})),
-                       progress=False, plots=False, transfer_trials=0, directed_window=v.get("directed_window", 0))
+                       progress=False, plots=False, transfer_trials=0, directed_window=v.get("directed_window", 0),
+                       restart_after=v.get("restart_after", 0))
 
 
 def main():

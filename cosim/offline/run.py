@@ -328,6 +328,7 @@ def run_offline(
     on_generation: Callable[[dict], None] | None = None,
     noisy: NoisyStage | None = None,
     directed_window: int = 0,
+    restart_after: int = 0,
 ) -> dict:
     """Run (or, with ``resume``, continue) the model-free experiment; return the summary dict.
 
@@ -345,6 +346,8 @@ def run_offline(
     config = run_config(seed, arena, max_leg_steps, n_targets, ga_config, noisy)
     if directed_window:
         config["directed_window"] = int(directed_window)
+    if restart_after:
+        config["restart_after"] = int(restart_after)
     ck_path = out / "checkpoint.json"
     if resume and ck_path.exists():
         state = load_checkpoint(ck_path, KIND, config)
@@ -400,6 +403,14 @@ def run_offline(
                     state["best"] = _best_entry(pop[i], best)
                     # instrumentation (issue 38): how the best's run ends, and the population's
                     # diversity (distinct truth tables; the elite and its copies count once)
+                    if restart_after:  # a fresh population after restart_after generations without a new record
+                        record = state.setdefault("record", {"targets": -1, "generation": 0, "restarts": []})
+                        if best.targets_reached > record["targets"]:
+                            record["targets"], record["generation"] = best.targets_reached, ga.generation
+                        elif ga.generation - record["generation"] >= restart_after:
+                            ga.restart()
+                            record["restarts"].append(ga.generation)
+                            record["targets"], record["generation"] = -1, ga.generation
                     entry_extra = {
                         "best_end": "crash" if best.crashed else "time-out" if best.timed_out else "done",
                         "best_end_state": best.failure_state,
