@@ -51,9 +51,6 @@ class GAConfig:
     # child's motion there (ga.operators.avoid_state_motion). 0 = the plain GA.
     directed_rate: float = 0.0
     directed_literals: int = 6  # literals of the term the directed mutation writes (8: s alone)
-    # with this probability a directed mutation writes its motion in all four target sectors of
-    # the failure state's obstacle pattern (issue 38's screen)
-    directed_sectors: float = 0.0
     literal_p: float = operators.DEFAULT_LITERAL_P  # connected-literal probability of new terms
     off_p: float = operators.DEFAULT_OFF_P  # fraction of off rows in the initial population
 
@@ -69,7 +66,7 @@ class GAConfig:
                 f"crossover must be one of {sorted(operators.CROSSOVERS)}, got {self.crossover!r}"
             )
         for name in ("crossover_rate", "literal_rate", "output_rate", "switch_rate", "replace_rate",
-                     "directed_rate", "directed_sectors", "literal_p", "off_p"):
+                     "directed_rate", "literal_p", "off_p"):
             value = getattr(self, name)
             if not 0.0 <= value <= 1.0:
                 raise ValueError(f"{name} must be in [0, 1], got {value!r}")
@@ -153,23 +150,12 @@ class GeneticAlgorithm:
             directed = rng.random(n) < cfg.directed_rate
             for i in np.flatnonzero(directed):
                 state = failures[parents[i, 0]]
-                if state is not None and not np.isscalar(state):  # candidates: draw one
-                    state = state[int(rng.integers(len(state)))]
                 # The reflex fixes the motion of obstacle-free states: the array cannot change it.
                 if state is not None and REFLEX_TABLE[int(state)] < 0:
-                    if cfg.directed_sectors > 0 and rng.random() < cfg.directed_sectors:
-                        children[i] = operators.avoid_pattern_motion(rng, children[i], int(state),
-                                                                     cfg.directed_literals)
-                    else:
-                        children[i] = operators.avoid_state_motion(
-                            rng, children[i], int(state), cfg.directed_literals
-                        )
+                    children[i] = operators.avoid_state_motion(
+                        rng, children[i], int(state), cfg.directed_literals
+                    )
         return np.concatenate([elites, children]).astype(ROW_DTYPE)
-
-    def restart(self) -> None:
-        """A fresh random population (from this GA's generator); the generation count goes on."""
-        cfg = self.config
-        self._population = operators.random_population(self.rng, cfg.population, cfg.literal_p, cfg.off_p)
 
     # -- checkpoints ---------------------------------------------------------------------------
 

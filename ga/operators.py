@@ -25,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 
 from ga.genome import LITERAL_MASK, N_ROWS, OUTPUT_MASK, OUTPUT_SHIFT, ROW_DTYPE, validate_rows
-from ga.motions import N_INPUTS, N_MOTIONS, N_OUTPUTS, N_STATES, OBSTACLE_MASK, SECTOR_SHIFT
+from ga.motions import N_INPUTS, N_MOTIONS, N_OUTPUTS, N_STATES
 
 DONT_CARE, POSITIVE, NEGATIVE, CONTRADICTION = 0, 1, 2, 3
 
@@ -352,17 +352,3 @@ def avoid_state_motion(rng: np.random.Generator, genome, state: int, n_literals:
     current = motion_in_state(genome, state)
     others = [m for m in range(N_MOTIONS) if m != current]
     return set_state_motion(rng, genome, state, int(rng.choice(others)), n_literals)
-
-
-def avoid_pattern_motion(rng: np.random.Generator, genome, state: int, n_literals: int = 6) -> np.ndarray:
-    """`avoid_state_motion` in ``state``, and the same new motion in the three other target sectors
-    of ``state``'s obstacle pattern (`set_state_motion` in each)."""
-    current = motion_in_state(genome, state)
-    motion = int(rng.choice([m for m in range(N_MOTIONS) if m != current]))
-    rows = set_state_motion(rng, genome, state, motion, n_literals)
-    obstacles = state & OBSTACLE_MASK
-    for sector in range(4):
-        other = obstacles | sector << SECTOR_SHIFT
-        if other != state:
-            rows = set_state_motion(rng, rows, other, motion, n_literals)
-    return rows

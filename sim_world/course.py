@@ -84,7 +84,6 @@ class CourseResult:
     failure_states: list[int] = field(default_factory=list)  # the state each failed leg ended in
     near_misses: int = 0  # motions that ended with the bumper closer than near_miss_mm to an obstacle
     obstacle_backs: int = 0  # backward motions executed with an obstacle beside or behind (count_backs)
-    leg_states: list[int] = field(default_factory=list)  # the last leg's states, one per motion (trace_leg)
 
 
 def run_course(
@@ -100,7 +99,6 @@ def run_course(
     leg_noise_seed=None,
     near_miss_mm: float = 0.0,
     count_backs: bool = False,
-    trace_leg: bool = False,
 ) -> CourseResult:
     """Run the motion table ``table`` ((256,) ints, reflex already applied) through the course.
 
@@ -115,8 +113,7 @@ def run_course(
     ``near_miss_mm`` > 0: count the motions (crashed ones excluded) after which the bumper is
     closer than this to an obstacle (``near_misses``; docs/research-log.md, off-line round 5). ``count_backs``:
     count the backward motions executed with an obstacle beside or behind (x3, x4 or x5 set;
-    ``obstacle_backs``). ``trace_leg``: ``leg_states`` holds the state before each motion of the
-    leg the run ended in (the off-line directed mutation's candidates).
+    ``obstacle_backs``).
     """
     if max_leg_steps < 1:
         raise ValueError(f"max_leg_steps must be >= 1, got {max_leg_steps!r}")
@@ -144,7 +141,6 @@ def run_course(
         traj.append((x, y, h, ""))
     leg = 0
     steps = 0
-    trace = res.leg_states if trace_leg else None
     while res.targets_reached + res.failed_legs < n_targets:
         failed = leg >= max_leg_steps
         if failed and not skip_failed_legs:
@@ -152,8 +148,6 @@ def run_course(
             break
         if not failed:
             a = motions[s]
-            if trace is not None:
-                trace.append(s)
             out = step(a)
             steps += 1
             leg += 1
@@ -184,8 +178,6 @@ def run_course(
             res.leg_steps.append(leg)
         if failed or out.reached:
             leg = 0
-            if trace is not None:
-                trace.clear()
             done = res.targets_reached + res.failed_legs
             if done >= n_targets:
                 break

@@ -50,7 +50,6 @@ from cosim.paper import PAPER_OFFLINE as PAPER
 from ga.evolution import GAConfig, GeneticAlgorithm
 from ga.genome import hex_from_rows, rows_from_hex, validate_rows
 from ga.model_free import N_TARGETS, max_run_steps, model_free_fitness
-from ga.motions import REFLEX_TABLE
 from ga.truth_table import truth_tables
 from sim_world.course import run_course
 
@@ -87,28 +86,18 @@ class Evaluation:
     states: frozenset  # world states met
     transitions: frozenset  # (state, motion, next state, crashed) met
     failure_state: int | None = None  # the state the run ended in, if it crashed or got stuck
-    # with directed_window > 0: the evolvable states (no reflex) among the failed leg's last motions
-    failure_candidates: tuple = ()
 
 
-def evaluate(world, rows, max_leg_steps: int, n_targets: int = N_TARGETS, reflex: bool = True,
-             directed_window: int = 0) -> Evaluation:
+def evaluate(world, rows, max_leg_steps: int, n_targets: int = N_TARGETS, reflex: bool = True) -> Evaluation:
     """Drive ``world`` (a `sim_world.world.World`) with one genome through the course and score it
-    (`ga.model_free.model_free_fitness`). ``directed_window`` > 0: ``failure_candidates`` are the
-    distinct evolvable states among the failed leg's last ``directed_window`` motions and the end
-    state (the directed mutation then draws one of them)."""
+    (`ga.model_free.model_free_fitness`)."""
     rows = validate_rows(rows)
     if rows.ndim != 1:
         raise ValueError(f"evaluate takes one genome of shape (50,), got {rows.shape!r}")
-    res = run_course(world, truth_tables(rows, reflex=reflex), max_leg_steps, n_targets=n_targets,
-                     trace_leg=directed_window > 0)
+    res = run_course(world, truth_tables(rows, reflex=reflex), max_leg_steps, n_targets=n_targets)
     # After a crash the pose is restored, so the state now is the one whose motion crashed; after
     # a time-out it is a state of the loop the robot was caught in.
     failed = res.crashed or res.timed_out
-    candidates = ()
-    if failed and directed_window > 0:
-        seen = res.leg_states[-directed_window:] + [int(world.state())]
-        candidates = tuple(sorted({int(s) for s in seen if REFLEX_TABLE[s] < 0}))
     fitness = model_free_fitness(res.targets_reached, res.final_distance_mm, world.arena.size_mm,
                                  res.steps, max_run_steps(max_leg_steps, n_targets))
     return Evaluation(
@@ -118,7 +107,6 @@ def evaluate(world, rows, max_leg_steps: int, n_targets: int = N_TARGETS, reflex
         states=frozenset(int(s) for s in res.states),
         transitions=frozenset(tuple(int(v) for v in t) for t in res.transitions),
         failure_state=int(world.state()) if failed else None,
-        failure_candidates=candidates,
     )
 
 
@@ -130,26 +118,22 @@ def _world(arena: str):
 
     world = _WORLDS.get(arena)
     if world is None:
-        world = _WORLDS[arena] = World(_load_arena(arena))
+        world = _WORLDS[arena] = World(load_arena_arg(arena))
     return world
 
 
-_load_arena = load_arena_arg
-
-
 def _evaluate_one(task) -> Evaluation:
-    arena, max_leg_steps, n_targets, directed_window, rows = task
-    return evaluate(_world(arena), rows, max_leg_steps, n_targets, directed_window=directed_window)
+    arena, max_leg_steps, n_targets, rows = task
+    return evaluate(_world(arena), rows, max_leg_steps, n_targets)
 
 
 class Evaluator:
     """Evaluates a population serially (``workers`` <= 1) or over a process pool, same result."""
 
     def __init__(self, arena: str, max_leg_steps: int, n_targets: int = N_TARGETS, workers: int = 1,
-                 cache_size: int = 4096, directed_window: int = 0):
+                 cache_size: int = 4096):
         self.cache_size = cache_size  # truth tables remembered (about 200 generations of 20)
         self.arena, self.max_leg_steps, self.n_targets = arena, max_leg_steps, n_targets
-        self.directed_window = directed_window
         self.workers = max(int(workers), 1)
         self._pool = None
         self._cache: dict[bytes, Evaluation] = {}
@@ -173,8 +157,7 @@ class Evaluator:
         for key, rows in zip(keys, pop):
             if key not in self._cache and key not in todo:
                 todo[key] = rows
-        tasks = [(self.arena, self.max_leg_steps, self.n_targets, self.directed_window, rows)
-                 for rows in todo.values()]
+        tasks = [(self.arena, self.max_leg_steps, self.n_targets, rows) for rows in todo.values()]
         if self._pool is None:
             fresh = [_evaluate_one(t) for t in tasks]
         else:
@@ -209,7 +192,7 @@ class Evaluator:
 
 
 def _arena_digest(arena: str) -> str:
-    data = json.dumps(_load_arena(arena).to_json(), sort_keys=True)
+    data = json.dumps(load_arena_arg(arena).to_json(), sort_keys=True)
     return hashlib.sha256(data.encode()).hexdigest()[:16]
 
 
@@ -327,8 +310,6 @@ def run_offline(
     transfer_leg_steps: int = 0,
     on_generation: Callable[[dict], None] | None = None,
     noisy: NoisyStage | None = None,
-    directed_window: int = 0,
-    restart_after: int = 0,
 ) -> dict:
     """Run (or, with ``resume``, continue) the model-free experiment; return the summary dict.
 
@@ -344,10 +325,6 @@ def run_offline(
     ga_config = ga_config or default_ga_config()
     noisy = DEFAULT_NOISY if noisy is None else noisy
     config = run_config(seed, arena, max_leg_steps, n_targets, ga_config, noisy)
-    if directed_window:
-        config["directed_window"] = int(directed_window)
-    if restart_after:
-        config["restart_after"] = int(restart_after)
     ck_path = out / "checkpoint.json"
     if resume and ck_path.exists():
         state = load_checkpoint(ck_path, KIND, config)
@@ -381,7 +358,7 @@ def run_offline(
     bar = tqdm(total=generations_cap, initial=min(ga.generation, generations_cap), disable=not progress,
                desc=f"model-free seed {seed}", unit="gen", dynamic_ncols=True)
     try:
-        with Evaluator(arena, max_leg_steps, n_targets, workers, directed_window=directed_window) as evaluator:
+        with Evaluator(arena, max_leg_steps, n_targets, workers) as evaluator:
             while not finished() and ga.generation < generations_cap:
                 pop = ga.ask()
                 if state["stage"] == 2:
@@ -392,8 +369,7 @@ def run_offline(
                     evals = evaluator(pop)
                     state["simulated_interactions"] += evaluator.simulated_steps - driven
                     fitness = np.array([e.fitness for e in evals], dtype=float)
-                    ga.tell(fitness, failures=[(e.failure_candidates or None) if directed_window else e.failure_state
-                                               for e in evals])
+                    ga.tell(fitness, failures=[e.failure_state for e in evals])
                     i = int(np.argmax(fitness))  # the same individual tell() took as best
                     best = evals[i]
                     for e in evals:
@@ -401,16 +377,7 @@ def run_offline(
                         transitions |= e.transitions
                     state["interactions"] += sum(e.steps for e in evals)
                     state["best"] = _best_entry(pop[i], best)
-                    # instrumentation (issue 38): how the best's run ends, and the population's
-                    # diversity (distinct truth tables; the elite and its copies count once)
-                    if restart_after:  # a fresh population after restart_after generations without a new record
-                        record = state.setdefault("record", {"targets": -1, "generation": 0, "restarts": []})
-                        if best.targets_reached > record["targets"]:
-                            record["targets"], record["generation"] = best.targets_reached, ga.generation
-                        elif ga.generation - record["generation"] >= restart_after:
-                            ga.restart()
-                            record["restarts"].append(ga.generation)
-                            record["targets"], record["generation"] = -1, ga.generation
+                    # how the best's run ends, and the diversity (docs/offline.md, the history)
                     entry_extra = {
                         "best_end": "crash" if best.crashed else "time-out" if best.timed_out else "done",
                         "best_end_state": best.failure_state,
