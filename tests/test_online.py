@@ -288,9 +288,9 @@ def test_command_line_error_is_one_line_and_status_2(capsys):
 
 def test_dropped_options_are_gone():
     help_text = build_parser().format_help()
-    for option in ("--mark-loops", "--targeted", "--download", "--loop-penalty", "--escape-spread",
-                   "--model-update", "--loop-key", "--loop-relax", "--escape-credit", "--blame-phase-only"):
-        assert option not in help_text
+    for name in ("--mark-loops", "--targeted", "--download", "--loop-penalty", "--escape-spread",
+                 "--model-update", "--loop-key", "--loop-relax", "--escape-credit", "--blame-phase-only"):
+        assert name not in help_text
 
 
 def test_interaction_breakdown_on_hand_made_records():

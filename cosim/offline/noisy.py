@@ -80,15 +80,20 @@ class NoisyStage:
     back_cost: float = 0.0  # a backward motion with an obstacle beside or behind costs this much of a leg
     final_race: int = 0  # R: at the end the last distinct elites drive R common seeds each (0: none; round 5)
     final_candidates: int = 8  # N: how many of the last distinct elites the final race takes
+    # issue 38: the stage after the paper's noise-free stage, at its own leg limit, keeping what
+    # the noise-free stage reached
+    leg_steps: int = 0  # the noisy runs' leg limit (0: the run's max_leg_steps)
+    keep_noise_free: bool = False  # a new elite must still reach every target noise-free (the gate)
+    budget_factor: float = 0.0  # the stage ends at this x the noise-free stage's interactions (0: no limit)
 
     def __post_init__(self):
         for name, least in (("trials", 0), ("accept_runs", 1), ("max_failures", 1), ("max_generations", 1),
-                            ("race", 0), ("budget", 0), ("leg_soft_steps", 0),
+                            ("race", 0), ("budget", 0), ("leg_soft_steps", 0), ("leg_steps", 0),
                             ("final_race", 0), ("final_candidates", 1)):
             value = getattr(self, name)
             if not (isinstance(value, int) and value >= least):
                 raise ValueError(f"{name} must be an int >= {least}, got {value!r}")
-        for name in ("near_miss_mm", "near_miss_cost", "back_cost"):
+        for name in ("near_miss_mm", "near_miss_cost", "back_cost", "budget_factor"):
             if not getattr(self, name) >= 0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
 
@@ -101,9 +106,9 @@ class NoisyStage:
         return d
 
 
-# The fields added in round 5: left out of ``to_dict`` at their defaults.
+# The fields added in round 5 and later: left out of ``to_dict`` at their defaults.
 ROUND5_FIELDS = frozenset(("from_start", "leg_soft_steps", "near_miss_mm", "near_miss_cost", "back_cost",
-                           "final_race", "final_candidates"))
+                           "final_race", "final_candidates", "leg_steps", "keep_noise_free", "budget_factor"))
 
 
 def noise_seeds(seed: int, generation: int, trials: int) -> list[list[int]]:
@@ -232,7 +237,7 @@ def _tasks(stage: NoisyStage, arena: str, max_leg_steps: int, n_targets: int, ge
 
 
 def noisy_generation(run_map, pop, stage: NoisyStage, records: Records, seed: int, generation: int,
-                     arena: str, max_leg_steps: int, n_targets: int):
+                     arena: str, max_leg_steps: int, n_targets: int, gate=None):
     """Drive every individual of ``pop`` on the generation's K common noise seeds.
 
     ``run_map(fn, tasks)`` maps serially or over a process pool (`cosim.offline.run.Evaluator.map`).
@@ -240,7 +245,9 @@ def noisy_generation(run_map, pop, stage: NoisyStage, records: Records, seed: in
     runs) and its runs enter its record once; the interactions count every individual, as the
     noise-free stage counts them. Returns (keys, the K runs of each individual, fitness = the mean
     over this generation's K runs, the first failure state of each individual's runs,
-    interactions, simulated).
+    interactions, simulated). ``gate(rows) -> (passed, steps)``: a challenger that would take the
+    elite's place (after the race) must pass it too (`stage_step`: it reaches every target
+    noise-free); its steps are the caller's to count.
     """
     seeds = noise_seeds(seed, generation, stage.trials)
     keys = [table_key(rows) for rows in pop]
@@ -272,6 +279,8 @@ def noisy_generation(run_map, pop, stage: NoisyStage, records: Records, seed: in
         simulated += sum(r.steps for r in raced)
         if sum(r.fitness for r in challenger) <= sum(r.fitness for r in champion):
             fitness[0] = fitness[top] + 1e-9  # the champion stays the elite
+    if gate is not None and keys[top] != keys[0] and fitness[top] > fitness[0] and not gate(pop[top])[0]:
+        fitness[0] = fitness[top] + 1e-9  # the challenger fails the gate: the champion stays
     return keys, runs, fitness, failures, interactions, simulated
 
 
@@ -358,6 +367,11 @@ NOISY_HELP = {
     "final_race": "noisy stage: at its end the last distinct elites drive this many common seeds each; "
                   "the one with the fewest failed legs is the result (0: none)",
     "final_candidates": "noisy stage: how many of the last distinct elites the final race takes",
+    "leg_steps": "noisy stage: the leg limit of its noisy runs (0: --max-leg-steps)",
+    "keep_noise_free": "noisy stage after the noise-free one: a challenger becomes the elite only if it still "
+                       "reaches every target noise-free at --max-leg-steps",
+    "budget_factor": "noisy stage: it ends once it has spent this many times the noise-free stage's "
+                     "interactions (0: no limit)",
 }
 
 

@@ -44,11 +44,12 @@ import numpy as np
 from base.checkpoint import load_checkpoint, save_checkpoint
 from base.files import atomic_write_json
 from cosim.offline.noisy import (ROBUST_MAX_LEG_STEPS, TRANSFER_TRIALS, NoisyStage, Records, add_noisy_arguments,
-                                 final_race, load_arena_arg, noisy_generation, table_key, transfer)
+                                 load_arena_arg, transfer)
+from cosim.offline.stage import best_entry, final_step, fresh_stage_state, stage_over, stage_step, stage_summary
 from cosim.offline.report import plot_results, seeds_table  # noqa: F401 (seeds_table: the API)
 from cosim.paper import PAPER_OFFLINE as PAPER
 from ga.evolution import GAConfig, GeneticAlgorithm
-from ga.genome import hex_from_rows, rows_from_hex, validate_rows
+from ga.genome import validate_rows
 from ga.model_free import N_TARGETS, max_run_steps, model_free_fitness
 from ga.truth_table import truth_tables
 from sim_world.course import run_course
@@ -223,74 +224,8 @@ def _fresh_state(ga: GeneticAlgorithm) -> dict:
         "best": None,
         "wall_time_s": 0.0,
         "stage": 1,  # 2: the noisy stage (cosim.offline.noisy)
-        "noisy": _fresh_noisy(),
+        "noisy": fresh_stage_state(),
     }
-
-
-def _fresh_noisy() -> dict:
-    return {"records": {}, "from_generation": None, "interactions": 0, "noise_free_best": None,
-            "accepted": False, "elites": [], "final_race": None}
-
-
-def _best_entry(rows, ev: Evaluation, **extra) -> dict:
-    return {"genome": hex_from_rows(rows), "fitness": ev.fitness, "targets_reached": ev.targets_reached,
-            "steps": ev.steps, "crashed": ev.crashed, "timed_out": ev.timed_out,
-            "final_distance_mm": ev.final_distance_mm, **extra}
-
-
-def _noisy_step(ga, pop, evaluator, noisy: NoisyStage, records: Records, state, seed, arena, max_leg_steps,
-                n_targets, states, transitions):
-    """One generation of the noisy stage (`cosim.offline.noisy`): every individual on the
-    generation's K common noise seeds, fitness = its mean over them. The best is also driven once
-    noise-free (counted, for the summary and the history).
-    Returns the noise-free Evaluation of the best and the history entry's noisy fields."""
-    keys, runs, fitness, failures, steps, simulated = noisy_generation(
-        evaluator.map, pop, noisy, records, seed, ga.generation, arena, max_leg_steps, n_targets)
-    fitness = np.array(fitness, dtype=float)
-    ga.tell(fitness, failures=failures)
-    i = int(np.argmax(fitness))
-    for rs in runs:
-        for r in rs:
-            states |= r.states
-            transitions |= r.transitions
-    driven = evaluator.simulated_steps
-    best = evaluator(pop[i:i + 1])[0]  # noise-free (cached by truth table)
-    states |= best.states
-    transitions |= best.transitions
-    state["interactions"] += steps + best.steps
-    state["noisy"]["interactions"] += steps + best.steps
-    state["simulated_interactions"] += simulated + evaluator.simulated_steps - driven
-    record = records.summary(keys[i])
-    state["best"] = _best_entry(pop[i], best, noisy_fitness=float(fitness[i]), **record)
-    if records.accepted(keys[i], noisy.accept_runs):
-        state["noisy"]["accepted"] = True
-    elites = state["noisy"].setdefault("elites", [])
-    if noisy.final_race and (not elites or elites[-1][0] != keys[i]):  # the final race's candidates
-        elites.append([keys[i], hex_from_rows(pop[i])])
-        del elites[:-noisy.final_candidates]
-    return best, {"stage": 2, "best_noisy_fitness": float(fitness[i]), **record,
-                  "clean_runs": sum(r.clean for rs in runs for r in rs)}
-
-
-def _final_step(evaluator, noisy: NoisyStage, state, seed, arena, max_leg_steps, n_targets, config, ck_path):
-    """The noisy stage's final race (round 5): the last distinct elites on common seeds; the winner
-    becomes the result (counted; the winner is also driven once noise-free, for the summary)."""
-    candidates = [g for _, g in state["noisy"].get("elites", [])]
-    if not candidates:
-        return
-    winner, table, steps = final_race(evaluator.map, candidates, noisy, seed, arena, max_leg_steps, n_targets)
-    rows = rows_from_hex(candidates[winner])
-    driven = evaluator.simulated_steps
-    best = evaluator(rows[None, :])[0]
-    steps += best.steps
-    state["interactions"] += steps
-    state["noisy"]["interactions"] += steps
-    state["simulated_interactions"] += steps - best.steps + evaluator.simulated_steps - driven
-    record = Records(state["noisy"]["records"]).summary(table_key(rows))
-    state["best"] = _best_entry(rows, best, **record)
-    state["noisy"]["final_race"] = {"candidates": len(candidates), "winner": winner, "interactions": steps,
-                                    "failed_legs_clean_runs_mean_fitness": table}
-    save_checkpoint(ck_path, KIND, config, state)
 
 
 def run_offline(
@@ -329,7 +264,7 @@ def run_offline(
     if resume and ck_path.exists():
         state = load_checkpoint(ck_path, KIND, config)
         state.setdefault("stage", 1)  # a checkpoint written before the noisy stage existed
-        state.setdefault("noisy", _fresh_noisy())
+        state.setdefault("noisy", fresh_stage_state())
         ga = GeneticAlgorithm.from_state_dict(state["ga"], np.random.default_rng())
     else:
         ga = GeneticAlgorithm(ga_config, np.random.default_rng(seed))
@@ -348,12 +283,7 @@ def run_offline(
         return best is not None and best["targets_reached"] >= n_targets
 
     def finished() -> bool:
-        if noisy.trials:
-            first = state["noisy"]["from_generation"]
-            return state["noisy"]["accepted"] or (first is not None and (
-                ga.generation - first + 1 >= noisy.max_generations
-                or 0 < noisy.budget <= state["noisy"]["interactions"]))
-        return reached_all()
+        return stage_over(noisy, state["noisy"], ga.generation) if noisy.trials else reached_all()
 
     bar = tqdm(total=generations_cap, initial=min(ga.generation, generations_cap), disable=not progress,
                desc=f"model-free seed {seed}", unit="gen", dynamic_ncols=True)
@@ -362,8 +292,8 @@ def run_offline(
             while not finished() and ga.generation < generations_cap:
                 pop = ga.ask()
                 if state["stage"] == 2:
-                    best, entry_extra = _noisy_step(ga, pop, evaluator, noisy, records, state, seed, arena,
-                                                    max_leg_steps, n_targets, states, transitions)
+                    best, entry_extra = stage_step(ga, pop, evaluator, noisy, records, state, seed, arena,
+                                                   max_leg_steps, n_targets, states, transitions)
                 else:
                     driven = evaluator.simulated_steps
                     evals = evaluator(pop)
@@ -376,7 +306,7 @@ def run_offline(
                         states |= e.states
                         transitions |= e.transitions
                     state["interactions"] += sum(e.steps for e in evals)
-                    state["best"] = _best_entry(pop[i], best)
+                    state["best"] = best_entry(pop[i], best)
                     # how the best's run ends, and the diversity (docs/offline.md, the history)
                     entry_extra = {
                         "best_end": "crash" if best.crashed else "time-out" if best.timed_out else "done",
@@ -387,7 +317,8 @@ def run_offline(
                     if noisy.trials and best.targets_reached >= n_targets:
                         state["stage"] = 2  # the noise-free best reaches every target: go noisy
                         state["noisy"]["from_generation"] = ga.generation + 1
-                        state["noisy"]["noise_free_best"] = dict(state["best"])
+                        state["noisy"]["noise_free_best"] = dict(state["best"], generations=ga.generation,
+                                                                 interactions=state["interactions"])
                 entry = {
                     "generation": ga.generation,
                     "best_fitness": best.fitness,
@@ -413,14 +344,18 @@ def run_offline(
                 if on_generation is not None:
                     on_generation(entry)
             if noisy.final_race and state["stage"] == 2 and state["noisy"].get("final_race") is None:
-                _final_step(evaluator, noisy, state, seed, arena, max_leg_steps, n_targets, config, ck_path)
+                final_step(evaluator, noisy, state, seed, arena, max_leg_steps, n_targets)
+                save_checkpoint(ck_path, KIND, config, state)
     finally:
         bar.close()
 
     summary = _summary(seed, state, config, ga_config, workers, reached_all())
     if transfer_trials:
-        summary["transfer"] = transfer(summary["best_genome"], arena, transfer_leg_steps or max_leg_steps,
-                                       n_targets, seed, transfer_trials)
+        legs = transfer_leg_steps or (noisy.trials and noisy.leg_steps) or max_leg_steps
+        summary["transfer"] = transfer(summary["best_genome"], arena, legs, n_targets, seed, transfer_trials)
+        first = (summary.get("noisy_stage") or {}).get("noise_free_best")
+        if first:  # the noise-free stage's champion, on the same noise seeds
+            first["transfer"] = transfer(first["genome"], arena, legs, n_targets, seed, transfer_trials)
     atomic_write_json(out / "history.json", state["history"])
     if plots:
         summary["figures"] = plot_results(out, state["history"], summary["best_genome"], arena,
@@ -454,21 +389,8 @@ def _summary(seed, state, config, ga_config: GAConfig, workers, reached_all) -> 
         "max_run_steps": max_run_steps(config["max_leg_steps"], config["n_targets"]),
         "config": config,
         "paper": PAPER,
-        **({"noisy_stage": _noisy_summary(state, generations)} if "noisy_stage" in config else {}),
+        **({"noisy_stage": stage_summary(state, generations)} if "noisy_stage" in config else {}),
     }
-
-
-def _noisy_summary(state, generations: int) -> dict:
-    """What the noisy stage did: from which generation, its interactions (in ``interactions``
-    already), whether a controller was accepted, the final best's record, the noise-free best."""
-    noisy, best = state["noisy"], state["best"] or {}
-    first = noisy["from_generation"]
-    return {"from_generation": first, "generations": 0 if first is None else generations - first + 1,
-            "interactions": noisy["interactions"], "accepted": noisy["accepted"],
-            "controllers_recorded": len(noisy["records"]),
-            **({"final_race": noisy["final_race"]} if noisy.get("final_race") else {}),
-            **{k: best[k] for k in ("noisy_runs", "noisy_clean_runs", "noisy_mean_clean_legs") if k in best},
-            "noise_free_best": noisy["noise_free_best"]}
 
 
 # -- Command line --------------------------------------------------------------------------------
