@@ -256,3 +256,44 @@ def test_the_config_files_name_only_offline_options_and_the_default_is_the_robus
     assert _stage_of({**defaults, **cfg}).trials == offline.DEFAULT_NOISY.trials == 0
     assert "noisy_stage" not in offline.run_config(1, "default", 150, 64, offline.default_ga_config(),
                                                    _stage_of({**defaults, **cfg}))
+
+
+def test_the_gate_keeps_the_champion_when_the_challenger_fails_it():
+    from cosim.offline.noisy import _drive_one, noisy_generation
+    from ga.operators import random_population
+
+    pop = random_population(np.random.default_rng(3), 6)
+    run_map = lambda fn, tasks: [fn(t) for t in tasks]  # noqa: E731
+    challenged = 0
+    for generation in range(6):
+        stage = NoisyStage(trials=1)
+        plain = noisy_generation(run_map, pop, stage, Records(), 1, generation, "one_obstacle", 80, 6)[2]
+        asked = []
+        shut = noisy_generation(run_map, pop, stage, Records(), 1, generation, "one_obstacle", 80, 6,
+                                gate=lambda rows: asked.append(rows) or (False, 0))[2]
+        open_ = noisy_generation(run_map, pop, stage, Records(), 1, generation, "one_obstacle", 80, 6,
+                                 gate=lambda rows: (True, 0))[2]
+        assert open_ == plain
+        top = int(np.argmax(plain))
+        if top != 0:
+            challenged += 1
+            assert len(asked) == 1 and np.array_equal(asked[0], pop[top]) and int(np.argmax(shut)) == 0
+        else:
+            assert asked == [] and shut == plain
+    assert challenged >= 2
+
+
+def test_after_the_gate_every_elite_still_reaches_every_target_noise_free(tmp_path):
+    cfg = dict(SMALL, arena="one_obstacle", n_targets=8, max_leg_steps=80)
+    stage = NoisyStage(trials=1, accept_runs=1000, keep_noise_free=True, leg_steps=100, budget_factor=2.0,
+                       max_failures=8)
+    s = run_offline(1, generations_cap=400, out=tmp_path, noisy=stage, **cfg)
+    n = s["noisy_stage"]
+    first = n["noise_free_best"]
+    assert first["generations"] == n["from_generation"] - 1 and first["targets_reached"] == 8
+    assert first["interactions"] + n["interactions"] == s["interactions"]
+    assert 2.0 * first["interactions"] <= n["interactions"] and s["generations"] < 400  # the budget factor
+    history = json.loads((tmp_path / "history.json").read_text())
+    assert all(h["best_targets"] == 8 for h in history if h.get("stage") == 2)
+    assert s["reached_all_targets"] and s["transfer"]["max_leg_steps"] == 100
+    assert first["transfer"]["noise_seeds"] == s["transfer"]["noise_seeds"]
