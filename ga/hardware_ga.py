@@ -248,7 +248,7 @@ def learn_cycles(n_states: int, config: HardwareGAConfig, generations: int) -> i
 
 def _mutate_rows(words, r0, r1, r2, r3, r4, r5, config: HardwareGAConfig):
     """The four row mutations of the module docstring on row words (any shape, uint32)."""
-    u32, f16 = np.uint32, np.uint32(FIELD16_SHIFT)
+    f16 = np.uint32(FIELD16_SHIFT)
     # Most rows have no event (about 6 % have one at the default rates): the datapath below runs
     # on those that do; a row without an event comes out unchanged.
     touched = np.flatnonzero(((r0 >> f16) < config.literal_threshold)
