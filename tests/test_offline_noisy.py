@@ -297,23 +297,3 @@ def test_after_the_gate_every_elite_still_reaches_every_target_noise_free(tmp_pa
     assert all(h["best_targets"] == 8 for h in history if h.get("stage") == 2)
     assert s["reached_all_targets"] and s["transfer"]["max_leg_steps"] == 100
     assert first["transfer"]["noise_seeds"] == s["transfer"]["noise_seeds"]
-
-
-def test_the_noise_free_trial_is_one_more_run_in_the_fitness_and_not_in_the_record():
-    from cosim.offline.noisy import _noise_free_world, noisy_generation
-    from ga.operators import random_population
-
-    pop = random_population(np.random.default_rng(5), 6)
-    run_map = lambda fn, tasks: [fn(t) for t in tasks]  # noqa: E731
-    plain_stage, stage = NoisyStage(trials=2), NoisyStage(trials=2, noise_free_trial=True)
-    plain_records, records = Records(), Records()
-    keys, _, plain, _, plain_steps, _ = noisy_generation(run_map, pop, plain_stage, plain_records, 1, 0,
-                                                         "one_obstacle", 80, 6)
-    keys2, runs, fitness, _, steps, _ = noisy_generation(run_map, pop, stage, records, 1, 0, "one_obstacle", 80, 6)
-    assert keys2 == keys and records.data == plain_records.data  # the record holds the noisy runs only
-    free = [drive_noisy(_noise_free_world("one_obstacle"), rows, 80, 6, [0], stage.max_failures) for rows in pop]
-    assert all(len(rs) == 3 and rs[2] == f for rs, f in zip(runs, free))
-    assert fitness == pytest.approx([(2 * p + f.fitness) / 3 for p, f in zip(plain, free)])
-    assert steps == plain_steps + sum(f.steps for f in free)
-    # the noise-free run is deterministic, the noisy ones are not: some individual's differ
-    assert any(rs[2].steps != rs[0].steps for rs in runs)

@@ -85,9 +85,6 @@ class NoisyStage:
     leg_steps: int = 0  # the noisy runs' leg limit (0: the run's max_leg_steps)
     keep_noise_free: bool = False  # a new elite must still reach every target noise-free (the gate)
     budget_factor: float = 0.0  # the stage ends at this x the noise-free stage's interactions (0: no limit)
-    # issue 38: every individual also drives one graded run in the noise-free world, which enters
-    # its fitness as one more run (not its record): the deterministic loops that the noise breaks
-    noise_free_trial: bool = False
 
     def __post_init__(self):
         for name, least in (("trials", 0), ("accept_runs", 1), ("max_failures", 1), ("max_generations", 1),
@@ -111,8 +108,7 @@ class NoisyStage:
 
 # The fields added in round 5 and later: left out of ``to_dict`` at their defaults.
 ROUND5_FIELDS = frozenset(("from_start", "leg_soft_steps", "near_miss_mm", "near_miss_cost", "back_cost",
-                           "final_race", "final_candidates", "leg_steps", "keep_noise_free", "budget_factor",
-                           "noise_free_trial"))
+                           "final_race", "final_candidates", "leg_steps", "keep_noise_free", "budget_factor"))
 
 
 def noise_seeds(seed: int, generation: int, trials: int) -> list[list[int]]:
@@ -229,23 +225,8 @@ def _noisy_world(arena: str, seed=0):
     return world
 
 
-_NOISE_FREE = None  # the noise seed of `_drive_one`'s noise-free run (``noise_free_trial``)
-
-
-def _noise_free_world(arena: str):
-    from sim_world.world import World
-
-    world = _NOISY_WORLDS.get((arena, "noise-free"))
-    if world is None:
-        world = _NOISY_WORLDS[(arena, "noise-free")] = World(load_arena_arg(arena))
-    return world
-
-
 def _drive_one(task) -> NoisyRun:
     arena, max_leg_steps, n_targets, rows, noise_seed, stage = task
-    if noise_seed is _NOISE_FREE:
-        return drive_noisy(_noise_free_world(arena), rows, max_leg_steps, n_targets, [0], stage.max_failures,
-                           stage.leg_soft_steps, stage.near_miss_mm, stage.near_miss_cost, stage.back_cost)
     return drive_noisy(_noisy_world(arena), rows, max_leg_steps, n_targets, noise_seed, stage.max_failures,
                        stage.leg_soft_steps, stage.near_miss_mm, stage.near_miss_cost, stage.back_cost)
 
@@ -273,16 +254,14 @@ def noisy_generation(run_map, pop, stage: NoisyStage, records: Records, seed: in
     unique = {}
     for key, rows in zip(keys, pop):
         unique.setdefault(key, rows)
+    driven = run_map(_drive_one, _tasks(stage, arena, max_leg_steps, n_targets, unique.values(), seeds))
     k = stage.trials
-    nf = int(stage.noise_free_trial)
-    driven = run_map(_drive_one, _tasks(stage, arena, max_leg_steps, n_targets, unique.values(),
-                                        seeds + [_NOISE_FREE] * nf))
-    runs_of = {key: driven[i * (k + nf):(i + 1) * (k + nf)] for i, key in enumerate(unique)}
+    runs_of = {key: driven[i * k:(i + 1) * k] for i, key in enumerate(unique)}
     for key, runs in runs_of.items():
-        for run in runs[:k]:  # the noise-free run is not a noisy run of the record
+        for run in runs:
             records.add(key, run)
     runs = [runs_of[key] for key in keys]
-    fitness = [sum(r.fitness for r in rs) / (k + nf) for rs in runs]
+    fitness = [sum(r.fitness for r in rs) / k for rs in runs]
     failures = [next((r.failure_state for r in rs if r.failure_state is not None), None) for rs in runs]
     interactions = sum(r.steps for rs in runs for r in rs)
     simulated = sum(r.steps for r in driven)
@@ -393,8 +372,6 @@ NOISY_HELP = {
                        "reaches every target noise-free at --max-leg-steps",
     "budget_factor": "noisy stage: it ends once it has spent this many times the noise-free stage's "
                      "interactions (0: no limit)",
-    "noise_free_trial": "noisy stage: every individual also drives one graded run noise-free (at the "
-                        "noisy runs' leg limit), one more run in its fitness (issue 38)",
 }
 
 

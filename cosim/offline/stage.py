@@ -68,7 +68,7 @@ def stage_step(ga, pop, evaluator, stage: NoisyStage, records: Records, state, s
         elites.append([keys[i], hex_from_rows(pop[i])])
         del elites[:-stage.final_candidates]
     return best, {"stage": 2, "best_noisy_fitness": float(fitness[i]), **record,
-                  "clean_runs": sum(r.clean for rs in runs for r in rs[:stage.trials])}
+                  "clean_runs": sum(r.clean for rs in runs for r in rs)}
 
 
 def final_step(evaluator, stage: NoisyStage, state, seed, arena, max_leg_steps, n_targets) -> None:
