@@ -79,6 +79,15 @@ def _patched(source: Path, replacements: dict[str, str]) -> str:
 # CLOCK_ENABLE is tied to 1; every ECP5 output pad has T tied to 0, its input pads are inputs).
 _ICE40_VERILATOR = {"wire clken_pulled = CLOCK_ENABLE || CLOCK_ENABLE === 1'bz;":
                     "wire clken_pulled = CLOCK_ENABLE;"}
+# The routed cells' models pull an unconnected input up or down with ``=== 1'bz`` tests, which
+# Verilator refuses. nextpnr connects every input of a routed cell (``_check_routed`` makes sure),
+# so the copies Verilator reads take each input as it is.
+_ICE40_ROUTED_VERILATOR = {
+    **{f"wire {p}_pd = ({p} === 1'bz) ? 1'b0 : {p};": f"wire {p}_pd = {p};" for p in ("I0", "I1", "I2", "I3", "SR")},
+    "wire CEN_pu = (CEN === 1'bz) ? 1'b1 : CEN;": "wire CEN_pu = CEN;",
+    "\t\t\tpd = (x === 1'bz) ? 1'b0 : x;": "\t\t\tpd = x;",
+    "\t\t\tpu = (x === 1'bz) ? 1'b1 : x;": "\t\t\tpu = x;",
+}
 _ECP5_VERILATOR = {
     "always @(*) if (T === 1'bz) T_pd = 1'b0; else T_pd = T;": "always @(*) T_pd = T;",
     "\t\t\tassign B = 1'bz;\n\t\t\tassign O = B;": "\t\t\tassign O = B;",
@@ -95,7 +104,8 @@ def cell_models(workdir: Path, family: str, simulator: str = "icarus") -> list[P
     with that line commented out) and includes cells_ff.vh and cells_io.vh a second time
     (-DNO_INCLUDES, and both given once), without its DP16KD, a black box there; plus
     :func:`hdl.ecp5_models.ecp5_extra_models` (DP16KD, SGSR, MULT18X18D). For Verilator, copies
-    without the tristate tests (``_ICE40_VERILATOR``, ``_ECP5_VERILATOR``)."""
+    without the tristate tests (``_ICE40_VERILATOR``, ``_ICE40_ROUTED_VERILATOR``,
+    ``_ECP5_VERILATOR``)."""
     share = yowasp_share()
     workdir.mkdir(parents=True, exist_ok=True)
     verilator = simulator == "verilator"
@@ -103,7 +113,7 @@ def cell_models(workdir: Path, family: str, simulator: str = "icarus") -> list[P
         if not verilator:
             return [share / "ice40" / "cells_sim.v"]
         path = workdir / "cells_sim_ice40_verilator.v"
-        path.write_text(_patched(share / "ice40" / "cells_sim.v", _ICE40_VERILATOR))
+        path.write_text(_patched(share / "ice40" / "cells_sim.v", {**_ICE40_VERILATOR, **_ICE40_ROUTED_VERILATOR}))
         return [path]
     if family != "ecp5":
         raise GateSimError(f"no cell models for FPGA family {family!r}; known: ice40, ecp5")
@@ -184,7 +194,7 @@ class GateNetlist:
 
     target: str
     family: str
-    kind: str  # "synth": Yosys's netlist before place and route
+    kind: str  # "synth": Yosys's netlist before place and route; "pnr": nextpnr's routed one
     path: str  # the netlist's Verilog
     module: str  # its top module
     clk: str  # the pins: board clock, UART receive (host -> board), UART transmit
@@ -276,6 +286,142 @@ def synthesize(target_name: str, root: Path | str = NETLIST_ROOT, *, progress=pr
     return result
 
 
+def _check_routed(design: dict, target_name: str) -> None:
+    """Refuse a routed design (nextpnr's ``--write`` JSON) in which an input of a cell is left
+    unconnected, constant x/z, or on a net nothing drives: the Verilator models take every input
+    as it is (``_ICE40_ROUTED_VERILATOR``), where the vendor's would pull it up or down."""
+    (top,) = design["modules"].values()
+    driven = {b for p in top["ports"].values() if p["direction"] != "output" for b in p["bits"]}
+    for cell in top["cells"].values():
+        driven.update(b for port, bits in cell["connections"].items()
+                      if cell["port_directions"].get(port) == "output" for b in bits)
+    for name, cell in top["cells"].items():
+        for port, direction in cell["port_directions"].items():
+            bits = cell["connections"].get(port)
+            if direction == "input" and (not bits or any(b in ("x", "z") or (isinstance(b, int) and b not in driven)
+                                                             for b in bits)):
+                raise GateSimError(f"{target_name}: the routed cell {name} ({cell['type']}) has its input {port} "
+                                   f"undriven; the routed netlist cannot be simulated with the models as read")
+
+
+def _join_global_inputs(design: dict, target_name: str) -> dict:
+    """``design`` with each clock pin's path into its global buffer made a net.
+
+    An iCE40 clock pin (a GBIN pad) reaches its global buffer by a dedicated wire that nextpnr's
+    ``--write`` leaves implicit: the SB_IO's ``GLOBAL_BUFFER_OUTPUT`` and the SB_GB
+    ``$gbuf_<pad>_io``'s input are both empty. The SB_GB gets the pad's pin as its input."""
+    (top,) = design["modules"].values()
+    cells = top["cells"]
+    for name, cell in cells.items():
+        if cell["type"] == "SB_IO" and cell["connections"].get("GLOBAL_BUFFER_OUTPUT") == []:
+            buffer = cells.get(f"$gbuf_{name}_io")
+            if buffer is None or buffer["connections"].get("USER_SIGNAL_TO_GLOBAL_BUFFER") != []:
+                raise GateSimError(f"{target_name}: the routed pad {name} feeds a global buffer that is "
+                                   f"not $gbuf_{name}_io with its input empty")
+            buffer["connections"]["USER_SIGNAL_TO_GLOBAL_BUFFER"] = list(cell["connections"]["PACKAGE_PIN"])
+            del cell["connections"]["GLOBAL_BUFFER_OUTPUT"]
+            del cell["port_directions"]["GLOBAL_BUFFER_OUTPUT"]
+    return design
+
+
+# What an unconnected input of a routed iCE40 cell is on the chip (the models' pull-ups and
+# pull-downs): 1 for the clock enables, 0 for the rest.
+_ICE40_PULLED = {"ICESTORM_LC", "ICESTORM_RAM", "SB_IO"}
+_ICE40_PULLED_UP = {"CEN", "RCLKE", "WCLKE", "CLOCK_ENABLE"}
+
+
+def _tie_unconnected(design: dict) -> dict:
+    """``design`` with every unconnected input of an iCE40 logic, RAM or I/O cell tied to the
+    value the chip (and the vendor model's ``=== 1'bz`` test) gives it, so that the Verilator
+    copies of the models, which take every input as it is, simulate the same logic."""
+    (top,) = design["modules"].values()
+    for cell in top["cells"].values():
+        if cell["type"] in _ICE40_PULLED:
+            for port, direction in cell["port_directions"].items():
+                if direction == "input" and not cell["connections"].get(port):
+                    cell["connections"][port] = ["1" if port in _ICE40_PULLED_UP else "0"]
+    return design
+
+
+# The families whose routed netlists simulate (see :func:`place_and_route`).
+PNR_FAMILIES = ("ice40",)
+
+
+def place_and_route(target_name: str, root: Path | str = NETLIST_ROOT, *, seed: int = 1,
+                    progress=print) -> GateNetlist:
+    """The netlist of ``target_name`` after nextpnr placed and routed it (cached).
+
+    The arguments are the bitstream's (the platform's nextpnr command, ``seed`` and the target's
+    own options, as ``hdl.fpga.build``), plus ``--write``: nextpnr writes the routed design back
+    as the cells of the chip (iCE40: ICESTORM_LC, ICESTORM_RAM, SB_IO, SB_GB; ECP5: TRELLIS_COMB,
+    TRELLIS_FF, TRELLIS_IO, DP16KD, ...), which Yosys turns into Verilog for the same cell models.
+    The simulation is functional (no SDF delays): it checks what packing, placement and routing
+    made of the logic (LUT input permutations, carry chains, the block RAM's configuration), not
+    the timing, which nextpnr's report covers.
+
+    iCE40 only (``PNR_FAMILIES``). nextpnr-ecp5 writes a routed netlist too (ulx3s-system: 3 minutes),
+    but its cells do not simulate with the wheel's models: an unconnected input means a constant that
+    each cell's ``*MUX`` parameter sets (``INV``, ``"0 "``; 31 DP16KD with every chip select, clock
+    enable and reset left so), TRELLIS_RAMW (the LUT RAMs' write port) and DCCA (the clock buffer)
+    have no model, and the DP16KD model of :mod:`hdl.ecp5_models` knows no ``*MUX``."""
+    import time
+
+    from hdl.fpga import TARGETS, tool_env
+
+    if target_name in TARGETS and TARGETS[target_name].family not in PNR_FAMILIES:
+        raise GateSimError(f"{target_name}: the placed and routed netlist is simulated for iCE40 targets only "
+                           f"(the routed ECP5 cells have no models that simulate them; docs/fpga.md)")
+    synth = synthesize(target_name, root, progress=progress)
+    out = synth.directory
+    module = f"{synth.module}_pnr"
+    netlist = out / f"{module}.v"
+    meta = out / f"pnr_{_META}"
+    options = f"--seed {seed} {TARGETS[target_name].nextpnr_opts}".strip()
+    key = hashlib.sha256(f"{synth.key} {options}".encode()).hexdigest()
+    if meta.exists() and netlist.exists():
+        cached = json.loads(meta.read_text())
+        if cached.get("key") == key:
+            return GateNetlist(**cached)
+    env = tool_env()
+    tool = "NEXTPNR_ICE40" if synth.family == "ice40" else "NEXTPNR_ECP5"
+    found = re.search(rf'"\${tool}" (.*)', (out / "build_top.sh").read_text())
+    if found is None:
+        raise GateSimError(f"{target_name}: the platform's build script has no {tool} command")
+    # the platform's arguments without its outputs (the bitstream's text, the log)
+    words, outputs = found.group(1).split(), ("--asc", "--textcfg", "--log")
+    args = [a for a, prev in zip(words, ["", *words]) if a != "--quiet" and outputs.count(a) + outputs.count(prev) == 0]
+    routed, stamp = out / "top.pnr.json", out / "top.pnr.key"  # nextpnr's own output, kept apart
+    t0 = time.perf_counter()
+    if not (routed.exists() and stamp.exists() and stamp.read_text() == key):
+        progress(f"{target_name}: placing and routing with nextpnr-{synth.family} ({options}; minutes)")
+        try:
+            run = subprocess.run([env[tool], "--quiet", *args, "--log", "pnr.log", "--write", routed.name,
+                                  "--timing-allow-fail", *options.split()], cwd=out, capture_output=True, text=True,
+                                 env=env)
+        except FileNotFoundError:
+            raise GateSimError(f"{target_name}: no {env[tool]} (the 'fpga' extra: pip install -e '.[fpga]', "
+                               f"or make gatesim)") from None
+        if run.returncode != 0:
+            said = (run.stderr.strip() or run.stdout.strip())[-500:]
+            raise GateSimError(f"{target_name}: nextpnr failed (log: {out / 'pnr.log'}): {said}")
+        stamp.write_text(key)
+    design = json.loads(routed.read_text())
+    design = _tie_unconnected(_join_global_inputs(design, target_name))
+    _check_routed(design, target_name)
+    (out / "top.pnr.sim.json").write_text(json.dumps(design))
+    run = subprocess.run([yosys_command(), "-q", "-p", f"read_json top.pnr.sim.json; rename top {module}; "
+                          f"write_verilog -noattr {netlist.name}"], cwd=out, capture_output=True, text=True)
+    if run.returncode != 0:
+        raise GateSimError(f"{target_name}: Yosys could not read the routed design: {run.stderr.strip()[-500:]}")
+    pnr_s = time.perf_counter() - t0
+    netlist.write_text(_pin_directions(netlist.read_text(), {synth.clk: "input", synth.rx: "input",
+                                                             synth.tx: "output"}))
+    result = GateNetlist(**{**asdict(synth), "kind": "pnr", "path": str(netlist), "module": module, "key": key,
+                            "synth_s": round(synth.synth_s + pnr_s, 1)})
+    meta.write_text(json.dumps(asdict(result), indent=1) + "\n")
+    return result
+
+
 class NetlistTop(wiring.Component):
     """A synthesised board top as a link top: ``rx``/``tx`` as the board's UART pins, the
     harness's ``sync`` clock on the board's clock pin (its reset is the netlist's own)."""
@@ -334,4 +480,4 @@ def harness_verilog(netlists: dict, name: str) -> str:
 
 __all__ = ["GateNetlist", "GateSimError", "NETLIST_ROOT", "NetlistTop", "PAIR", "PairHarness", "cell_models",
            "check_modelled", "harness_verilog", "modelled_cells", "module_name", "netlist_cells",
-           "simulator_flags", "synthesize"]
+           "PNR_FAMILIES", "place_and_route", "simulator_flags", "synthesize"]

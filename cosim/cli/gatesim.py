@@ -18,6 +18,9 @@ def gatesim_parser(p) -> None:
     p.add_argument("--simulator", choices=("verilator", "icarus"), default="verilator",
                    help="Verilator (compiles the netlist: minutes, then ~50x Icarus) or Icarus "
                         "(default: %(default)s)")
+    p.add_argument("--netlist", choices=("synth", "pnr"), default="synth",
+                   help="Yosys's synthesised netlist, or nextpnr's placed and routed one (the "
+                        "bitstream's placement, seed 1; iCE40 targets) (default: %(default)s)")
     p.add_argument("--seed", type=int, default=1, help="the lifetime's seed; the motions check's genomes (default: %(default)s)")
     motions = p.add_argument_group("the motions check (icebreaker-controller, ulx3s-learner)")
     motions.add_argument("--genomes", type=int, default=3, help="random genomes loaded (default: %(default)s)")
@@ -53,11 +56,19 @@ def cmd_gatesim(args, extras: dict, sub=None) -> int:
                               max_interactions=args.max_interactions)
     except (TypeError, ValueError) as exc:
         raise UserError(f"the lifetime's options: {exc}") from None
+    if args.netlist == "pnr":
+        from hdl.fpga import TARGETS
+        from hdl.gatesim import PNR_FAMILIES
+
+        other = [n for n in names if TARGETS[n].family not in PNR_FAMILIES]
+        if other:
+            raise UserError(f"--netlist pnr: the placed and routed netlist is simulated for the iCE40 targets only "
+                            f"(icebreaker-controller, icebreaker-evaluator), not {', '.join(other)}")
     failed = []
     for name in names:
         entry = run_gatesim(name, config=config, genomes=args.genomes, states=args.states, seed=args.seed,
-                            simulator=args.simulator, progress=not args.no_progress)
-        write_results(args.results, name, entry)
+                            simulator=args.simulator, kind=args.netlist, progress=not args.no_progress)
+        write_results(args.results, name if args.netlist == "synth" else f"{name}:pnr", entry)
         verdict = "EQUAL to the reference" if entry["equal_to_reference"] else "DIFFERS from the reference"
         print(f"{name}: {entry['check']} on the {entry['netlist']['kind']} netlist in {entry['simulator']}: "
               f"{entry['interactions']} interactions, {verdict} ({entry['wall_s']:.0f} s)"

@@ -5,7 +5,7 @@
     ehw compare   [--seeds 5] [--first-seed 1] [--methods ...] [--jobs 2] [--out DIR] [--resume] ...
     ehw verilog   [--out build/verilog] [BLOCK ...]
     ehw bitstream ...                                        (hdl.fpga, where the checkout has it)
-    ehw gatesim   [TARGET ...] [--simulator verilator|icarus] (cosim.launch.gatesim)
+    ehw gatesim   [TARGET ...] [--netlist synth|pnr] [--simulator ...] (cosim.launch.gatesim)
     ehw bench     [MODULE ...] [--out DIR] [--figures results/bench.json]
     ehw arena     [--arena NAME|FILE ...] [--out DIR]
     ehw baseline  [--arena default] [--seeds 5] [--out DIR]

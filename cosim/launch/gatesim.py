@@ -4,10 +4,12 @@ the unchanged host code, checked against the NumPy reference -> ``results/gatesi
     make gatesim                                  every target (GATESIM_TARGETS=...)
     ehw gatesim icebreaker-controller             the smallest: genomes and motions over the link
     ehw gatesim icebreaker-evaluator --targets 1  both iCEBreakers in one simulation, a lifetime
+    ehw gatesim --netlist pnr icebreaker-controller  the netlist nextpnr placed and routed (iCE40)
 
 The netlist is the board top as ``make bitstream`` builds it (``hdl.gatesim.synthesize``: the
 platform's clock pin and power-on reset, the UART at the real baud divisor), simulated with the
-vendor cell models in Icarus. Per target the check (``CHECKS``):
+vendor cell models in Verilator (or Icarus); with ``--netlist pnr`` the netlist nextpnr placed and
+routed for the bitstream (``hdl.gatesim.place_and_route``, iCE40). Per target the check (``CHECKS``):
 
 - ``motions`` (``icebreaker-controller``, ``ulx3s-learner``): IDENTIFY, then ``--genomes``
   seeded random genomes each sent with LOAD_CONTROLLER and asked MOTION in ``--states`` states
@@ -82,26 +84,29 @@ def reference_lifetime(config) -> tuple[dict, list[int]]:
 
 def run_gatesim(target: str, *, config=None, genomes: int = 3, states: int = 24, seed: int = 1,
                 out: Path | str | None = None, progress: bool = True, simulator: str = "verilator",
-                quick_build: bool = False, print_=print) -> dict:
+                kind: str = "synth", quick_build: bool = False, print_=print) -> dict:
     """Synthesise ``target``'s board top(s), simulate the check of ``CHECKS[target]`` and return
-    its ``results/gatesim.json`` entry (``config``: the lifetime's ``OnlineConfig``;
+    its ``results/gatesim.json`` entry (``config``: the lifetime's ``OnlineConfig``; ``kind``:
+    ``synth``, Yosys's netlist, or ``pnr``, nextpnr's placed and routed one;
     ``quick_build``: Verilator's C++ compiled without optimisation, minutes sooner for a short
     check, the simulation itself slower)."""
     from cosim.boards.cocotb_run import REPO_ROOT, CocotbFailure, run_cocotb
     from cosim.link.simulated import host_timeout_s
-    from hdl.gatesim import check_modelled, cell_models, harness_verilog, simulator_flags, synthesize
+    from hdl.gatesim import (cell_models, check_modelled, harness_verilog, place_and_route, simulator_flags,
+                             synthesize)
     from hdl.system_top import P_MAX
     from hdl.uart import uart_divisor
 
     check = CHECKS[target]
     t0 = time.perf_counter()
-    netlists = {role: synthesize(name, progress=print_) for role, name in _roles(target).items()}
+    make = {"synth": synthesize, "pnr": place_and_route}[kind]
+    netlists = {role: make(name, progress=print_) for role, name in _roles(target).items()}
     synth_s = time.perf_counter() - t0
     first = next(iter(netlists.values()))
-    out = prepare_out(OUT_ROOT / target if out is None else out)
+    out = prepare_out(OUT_ROOT / (target if kind == "synth" else f"{target}_{kind}") if out is None else out)
     for stale in ("motions.json", "link.json", "error.json"):
         (out / stale).unlink(missing_ok=True)
-    harness = first.directory / f"{TOPLEVEL}_{target}.v"
+    harness = first.directory / f"{TOPLEVEL}_{target}_{kind}.v"
     harness.write_text(harness_verilog(netlists, TOPLEVEL))
     # a folder of their own: Yosys would take a copied .vh in its working folder for its own
     models = cell_models(first.directory / "cells", first.family, simulator)
@@ -126,7 +131,7 @@ def run_gatesim(target: str, *, config=None, genomes: int = 3, states: int = 24,
     error = None
     try:
         run_cocotb(sources=sources, toplevel=TOPLEVEL, test_module="cosim.launch.gatesim_test",
-                   test_dir=REPO_ROOT, build_name=f"gatesim_{target}", testcase=f"gate_{check}",
+                   test_dir=REPO_ROOT, build_name=f"gatesim_{target}_{kind}", testcase=f"gate_{check}",
                    extra_env=env, simulator=simulator,
                    build_args=[*simulator_flags(first.family, simulator), *includes,
                                *(("-CFLAGS", "-O0") if quick_build and simulator == "verilator" else ())])
@@ -136,7 +141,10 @@ def run_gatesim(target: str, *, config=None, genomes: int = 3, states: int = 24,
         error = f"{simulator} could not build the netlist: {exc}"
     sim_s = time.perf_counter() - t1
     entry = {
-        "netlist": {"kind": first.kind, "tool": f"Yosys synth_{first.family}, write_verilog -noattr",
+        "netlist": {"kind": first.kind,
+                    "tool": (f"Yosys synth_{first.family}, write_verilog -noattr" if kind == "synth" else
+                             f"nextpnr-{first.family} --write (placed and routed), Yosys read_json, "
+                             "write_verilog -noattr; functional, no SDF delays"),
                     "modules": {role: n.module for role, n in netlists.items()},
                     "cell_models": [Path(p).name for p in sources[1 + len(netlists):]]},
         "simulator": _icarus_version() if simulator == "icarus" else _verilator_version(), "check": check,
