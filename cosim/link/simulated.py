@@ -136,12 +136,17 @@ class HarnessSerial:
         self._monitor = cocotb.start_soon(self._receive())
 
     async def _receive(self) -> None:
-        from cocotb.triggers import RisingEdge
+        from cocotb.triggers import NextTimeStep, ReadOnly, RisingEdge
 
         valid = self.dut.host_r_valid
         while True:
             await RisingEdge(valid)  # one pulse a byte (ready is always 1)
-            self._received.append(int(self.dut.host_r_data.value))
+            # the data once the time step has settled: Icarus calls back on valid's change before
+            # it has updated data, which changes in the same step (Verilator: after both)
+            await ReadOnly()
+            byte = int(self.dut.host_r_data.value)
+            await NextTimeStep()  # the reader this wakes may write to the top: not in ReadOnly
+            self._received.append(byte)
             self._arrived.set()
 
     async def _write(self, data: bytes) -> None:
