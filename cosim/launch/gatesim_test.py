@@ -80,7 +80,8 @@ async def _reporting(out: Path, job) -> None:
 
 @cocotb.test()
 async def gate_motions(dut):
-    """The controller board's netlist: genomes loaded over the link, motions == the reference."""
+    """The controller board's netlist (or the learner board's): genomes loaded over the link,
+    motions == the reference."""
     _, options = read_launch_env()
     (line,) = await _start(dut, options)
     out = Path(options["out"])
@@ -95,7 +96,8 @@ async def gate_motions(dut):
         from hdl.link_protocol import Design
 
         client = LinkClient(line)
-        identity = client.expect(Design.CONTROLLER)
+        # the learner board decodes the controller board's commands too (hdl.link_protocol)
+        identity = client.expect(Design.LEARNER if options["target"] == "ulx3s-learner" else Design.CONTROLLER)
         rng = np.random.default_rng(options["seed"])
         board = LinkControllerBoard(client, reflex=True, check=True)  # SET_REFLEX
         motions = []
