@@ -80,8 +80,9 @@ def _patched(source: Path, replacements: dict[str, str]) -> str:
 _ICE40_VERILATOR = {"wire clken_pulled = CLOCK_ENABLE || CLOCK_ENABLE === 1'bz;":
                     "wire clken_pulled = CLOCK_ENABLE;"}
 # The routed cells' models pull an unconnected input up or down with ``=== 1'bz`` tests, which
-# Verilator refuses. nextpnr connects every input of a routed cell (``_check_routed`` makes sure),
-# so the copies Verilator reads take each input as it is.
+# Verilator refuses. ``place_and_route`` ties every such input to that value (``_tie_unconnected``)
+# and refuses a design with one still undriven (``_check_routed``), so these copies take each
+# input as it is.
 _ICE40_ROUTED_VERILATOR = {
     **{f"wire {p}_pd = ({p} === 1'bz) ? 1'b0 : {p};": f"wire {p}_pd = {p};" for p in ("I0", "I1", "I2", "I3", "SR")},
     "wire CEN_pu = (CEN === 1'bz) ? 1'b1 : CEN;": "wire CEN_pu = CEN;",
@@ -353,8 +354,8 @@ def place_and_route(target_name: str, root: Path | str = NETLIST_ROOT, *, seed: 
 
     The arguments are the bitstream's (the platform's nextpnr command, ``seed`` and the target's
     own options, as ``hdl.fpga.build``), plus ``--write``: nextpnr writes the routed design back
-    as the cells of the chip (iCE40: ICESTORM_LC, ICESTORM_RAM, SB_IO, SB_GB; ECP5: TRELLIS_COMB,
-    TRELLIS_FF, TRELLIS_IO, DP16KD, ...), which Yosys turns into Verilog for the same cell models.
+    as the cells of the chip (ICESTORM_LC, ICESTORM_RAM, SB_IO, SB_GB), which Yosys turns into
+    Verilog for the same cell models.
     The simulation is functional (no SDF delays): it checks what packing, placement and routing
     made of the logic (LUT input permutations, carry chains, the block RAM's configuration), not
     the timing, which nextpnr's report covers.
@@ -382,8 +383,7 @@ def place_and_route(target_name: str, root: Path | str = NETLIST_ROOT, *, seed: 
         cached = json.loads(meta.read_text())
         if cached.get("key") == key:
             return GateNetlist(**cached)
-    env = tool_env()
-    tool = "NEXTPNR_ICE40" if synth.family == "ice40" else "NEXTPNR_ECP5"
+    env, tool = tool_env(), "NEXTPNR_ICE40"
     found = re.search(rf'"\${tool}" (.*)', (out / "build_top.sh").read_text())
     if found is None:
         raise GateSimError(f"{target_name}: the platform's build script has no {tool} command")
@@ -393,7 +393,7 @@ def place_and_route(target_name: str, root: Path | str = NETLIST_ROOT, *, seed: 
     routed, stamp = out / "top.pnr.json", out / "top.pnr.key"  # nextpnr's own output, kept apart
     t0 = time.perf_counter()
     if not (routed.exists() and stamp.exists() and stamp.read_text() == key):
-        progress(f"{target_name}: placing and routing with nextpnr-{synth.family} ({options}; minutes)")
+        progress(f"{target_name}: placing and routing with nextpnr-ice40 ({options}; minutes)")
         try:
             run = subprocess.run([env[tool], "--quiet", *args, "--log", "pnr.log", "--write", routed.name,
                                   "--timing-allow-fail", *options.split()], cwd=out, capture_output=True, text=True,

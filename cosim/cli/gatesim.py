@@ -60,10 +60,11 @@ def cmd_gatesim(args, extras: dict, sub=None) -> int:
         from hdl.fpga import TARGETS
         from hdl.gatesim import PNR_FAMILIES
 
-        other = [n for n in names if TARGETS[n].family not in PNR_FAMILIES]
+        routed = [n for n in CHECKS if TARGETS[n].family in PNR_FAMILIES]
+        other = [n for n in names if n not in routed]
         if other:
-            raise UserError(f"--netlist pnr: the placed and routed netlist is simulated for the iCE40 targets only "
-                            f"(icebreaker-controller, icebreaker-evaluator), not {', '.join(other)}")
+            raise UserError(f"--netlist pnr: the placed and routed netlist is simulated for {', '.join(routed)} "
+                            f"only, not {', '.join(other)}")
     failed = []
     for name in names:
         entry = run_gatesim(name, config=config, genomes=args.genomes, states=args.states, seed=args.seed,
