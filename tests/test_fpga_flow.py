@@ -211,3 +211,37 @@ def test_learning_bench_times_the_chip_at_the_clock_it_runs_at():
     assert bench.build_clock_mhz({**recorded, "clock_mhz": None}) is None
     with pytest.raises(ValueError, match="above its routed Fmax"):
         bench.build_clock_mhz({**recorded, "clock_mhz": recorded["fmax_mhz"] + 1})
+
+
+# -- the ECP5 PLL ----------------------------------------------------------------------------------
+
+
+def test_pll_dividers_are_exact_and_in_the_parts_ranges():
+    from hdl.ecp5_pll import PFD_MHZ, VCO_MHZ, PLLError, pll_params
+
+    assert pll_params(25e6, 30e6) == {"CLKI_DIV": 5, "CLKFB_DIV": 6, "CLKOP_DIV": 20, "CLKOP_CPHASE": 9}
+    for out_mhz in (30, 40, 50, 60, 75, 100):  # the femtoRV / ecppll settings for the ULX3S agree on these
+        p = pll_params(25e6, out_mhz * 1e6)
+        assert 25 * p["CLKFB_DIV"] / p["CLKI_DIV"] == out_mhz
+        assert PFD_MHZ[0] <= 25 / p["CLKI_DIV"] <= PFD_MHZ[1]
+        assert VCO_MHZ[0] <= out_mhz * p["CLKOP_DIV"] <= VCO_MHZ[1]
+    with pytest.raises(PLLError, match="cannot make exactly 1000 MHz"):
+        pll_params(25e6, 1000e6)  # the VCO's 800 MHz is the ceiling
+
+
+@pytest.mark.skipif(importlib.util.find_spec("amaranth_boards") is None,
+                    reason="needs amaranth-boards, in the 'fpga' extra (make bitstream installs it)")
+def test_learner_target_runs_at_its_pll_clock():
+    """The learner's plan: its PLL from the 25 MHz pin, the UART's divisor and nextpnr's constraint
+    for the PLL's 30 MHz, the fabric held in reset (SGSR) until LOCK."""
+    from hdl.uart import uart_divisor
+
+    target = fpga.TARGETS["ulx3s-learner"]
+    platform = target.make_platform()
+    assert target.clock_hz(platform) == fpga.LEARNER_CLOCK_HZ == 30e6
+    top = target.top(target.clock_hz(platform), fpga.learner_config(lanes=1))
+    files = platform.prepare(fpga.OnBoard(top, target.pll_hz), name="top").files
+    rtlil, lpf = files["top.il"], files["top.lpf"]
+    assert "cell \\EHXPLLL" in rtlil and "parameter \\CLKFB_DIV 6" in rtlil and "\\SGSR" in rtlil
+    assert "FREQUENCY NET" in lpf and "30000000" in lpf.replace(".0", ""), lpf
+    assert top.clk_freq_hz == 30e6 and uart_divisor(top.clk_freq_hz, top.baud) == 260

@@ -12,6 +12,7 @@ from pathlib import Path
 
 def gatesim_parser(p) -> None:
     from cosim.launch.gatesim import CHECKS, DEFAULT_TARGETS, RESULTS
+    from ga.hardware_ga import LEARNER_LANES
 
     p.add_argument("target_names", nargs="*", metavar="TARGET",
                    help=f"bitstream targets ({', '.join(CHECKS)}; default: {', '.join(DEFAULT_TARGETS)})")
@@ -25,11 +26,19 @@ def gatesim_parser(p) -> None:
     motions = p.add_argument_group("the motions check (icebreaker-controller, ulx3s-learner)")
     motions.add_argument("--genomes", type=int, default=3, help="random genomes loaded (default: %(default)s)")
     motions.add_argument("--states", type=int, default=24, help="states asked per genome (default: %(default)s)")
-    life = p.add_argument_group("the lifetime check (icebreaker-evaluator: both iCEBreakers; ulx3s-system)")
+    life = p.add_argument_group("the lifetime check (icebreaker-evaluator: both iCEBreakers; ulx3s-system; "
+                                "ulx3s-learner --ga hardware)")
     life.add_argument("--targets", type=int, default=4, help="targets of the lifetime (default: %(default)s)")
     life.add_argument("--population", type=int, default=4, help="GA population (default: %(default)s)")
     life.add_argument("--tournament", type=int, default=2, help="GA tournament (default: %(default)s)")
     life.add_argument("--generations-per-phase", type=int, default=1, help="(default: %(default)s)")
+    life.add_argument("--ga", choices=("host", "hardware"), default="host",
+                      help="hardware: ulx3s-learner's lifetime with its learning on the netlist's "
+                           "engine, synthesised for --population, --tournament and --lanes (the "
+                           "bitstream's 500 individuals take ~18 hours to upload at gate level) "
+                           "(default: %(default)s: ulx3s-learner runs the motions check)")
+    life.add_argument("--lanes", type=int, default=LEARNER_LANES,
+                      help="--ga hardware: the engine's lanes (default: %(default)s, the bitstream's)")
     life.add_argument("--max-interactions", type=int, default=40,
                       help="stop the lifetime after this many interactions: every byte costs "
                            "~1,000-2,000 gate-level clock cycles (default: %(default)s)")
@@ -47,15 +56,19 @@ def cmd_gatesim(args, extras: dict, sub=None) -> int:
     if unknown:
         raise UserError(f"unknown target(s) {', '.join(map(repr, unknown))}; known: {', '.join(CHECKS)}")
     for flag in ("genomes", "states", "targets", "population", "tournament", "generations_per_phase",
-                 "max_interactions"):
+                 "max_interactions", "lanes"):
         if getattr(args, flag) < 1:
             raise UserError(f"--{flag.replace('_', '-')} must be at least 1, got {getattr(args, flag)!r}")
     try:
         config = OnlineConfig(seed=args.seed, n_targets=args.targets, population=args.population,
                               tournament=args.tournament, generations_per_phase=args.generations_per_phase,
-                              max_interactions=args.max_interactions)
+                              max_interactions=args.max_interactions, ga=args.ga, lanes=args.lanes)
     except (TypeError, ValueError) as exc:
         raise UserError(f"the lifetime's options: {exc}") from None
+    if args.ga == "hardware" and (names != ["ulx3s-learner"] or args.netlist != "synth"):
+        raise UserError("--ga hardware: the lifetime on the learning engine is ulx3s-learner's, on its "
+                        f"synthesised netlist (ehw gatesim ulx3s-learner --ga hardware), not {' '.join(names)}"
+                        + (f" --netlist {args.netlist}" if args.netlist != "synth" else ""))
     if args.netlist == "pnr":
         from hdl.fpga import TARGETS
         from hdl.gatesim import PNR_FAMILIES

@@ -19,6 +19,11 @@ routed for the bitstream (``hdl.gatesim.place_and_route``, iCE40). Per target th
   ``--generations-per-phase``) on the boards of the ``serial`` backend, each with the reference
   beside it; then its summary and motion sequence are compared with the same lifetime on the
   reference backend.
+- ``ulx3s-learner --ga hardware``: a lifetime whose learning phases run on the netlist's engine
+  (``cosim.link.learning``, the ``serial`` backend's ``--ga hardware`` boards, the reference
+  engine beside it). The bitstream's engine holds 500 individuals, whose upload alone would take
+  ~18 hours at gate level, so this netlist is the same top synthesised for the lifetime's
+  ``--population``, ``--tournament`` and ``--lanes`` (default the bitstream's 7).
 
 ``results/gatesim.json`` holds ``targets.<target>``: ``netlist`` (kind, tool), ``simulator``,
 ``check``, ``interactions``, ``equal_to_reference``, ``wall_s`` (synthesis and simulation), the
@@ -44,13 +49,18 @@ DEFAULT_TARGETS = ("icebreaker-controller", "icebreaker-evaluator", "ulx3s-syste
 _NOT_COMPARED = {"backend", "wall_time_s", "board_cycles", "hardware", "phases", "targets"}
 
 
-def _roles(target: str) -> dict[str, str]:
+def _roles(target: str, check: str) -> dict[str, str]:
     """Board role -> bitstream target of the simulation of ``target``."""
     from hdl.gatesim import PAIR
 
     if target == "icebreaker-evaluator":
         return dict(zip(("controller", "evaluator"), PAIR))
-    return {"controller" if CHECKS[target] == "motions" else "system": target}
+    return {"controller" if check == "motions" else "system": target}
+
+
+def learns_on_engine(target: str, config) -> bool:
+    """Whether the check of ``target`` is a lifetime on its learning engine (``--ga hardware``)."""
+    return target == "ulx3s-learner" and config is not None and config.ga == "hardware"
 
 
 def _icarus_version() -> str:
@@ -97,16 +107,25 @@ def run_gatesim(target: str, *, config=None, genomes: int = 3, states: int = 24,
     from hdl.system_top import P_MAX
     from hdl.uart import uart_divisor
 
+    engine = None
     check = CHECKS[target]
+    if learns_on_engine(target, config):
+        from cosim.online.learning_phase import hardware_ga_config
+
+        check, engine = "lifetime", hardware_ga_config(config)
     t0 = time.perf_counter()
-    make = {"synth": synthesize, "pnr": place_and_route}[kind]
-    netlists = {role: make(name, progress=print_) for role, name in _roles(target).items()}
+    if kind == "synth":
+        netlists = {role: synthesize(name, progress=print_, engine=engine)
+                    for role, name in _roles(target, check).items()}
+    else:
+        netlists = {role: place_and_route(name, progress=print_) for role, name in _roles(target, check).items()}
     synth_s = time.perf_counter() - t0
     first = next(iter(netlists.values()))
-    out = prepare_out(OUT_ROOT / (target if kind == "synth" else f"{target}_{kind}") if out is None else out)
+    variant = f"{Path(first.directory).name}_{kind}"  # the engine's folder for --ga hardware
+    out = prepare_out(OUT_ROOT / variant.removesuffix("_synth") if out is None else out)
     for stale in ("motions.json", "link.json", "error.json"):
         (out / stale).unlink(missing_ok=True)
-    harness = first.directory / f"{TOPLEVEL}_{target}_{kind}.v"
+    harness = first.directory / f"{TOPLEVEL}_{variant}.v"
     harness.write_text(harness_verilog(netlists, TOPLEVEL))
     # a folder of their own: Yosys would take a copied .vh in its working folder for its own
     models = cell_models(first.directory / "cells", first.family, simulator)
@@ -131,7 +150,7 @@ def run_gatesim(target: str, *, config=None, genomes: int = 3, states: int = 24,
     error = None
     try:
         run_cocotb(sources=sources, toplevel=TOPLEVEL, test_module="cosim.launch.gatesim_test",
-                   test_dir=REPO_ROOT, build_name=f"gatesim_{target}_{kind}", testcase=f"gate_{check}",
+                   test_dir=REPO_ROOT, build_name=f"gatesim_{variant}", testcase=f"gate_{check}",
                    extra_env=env, simulator=simulator,
                    build_args=[*simulator_flags(first.family, simulator), *includes,
                                *(("-CFLAGS", "-O0") if quick_build and simulator == "verilator" else ())])
@@ -181,7 +200,8 @@ def _outcome(check: str, out: Path, config, error: str | None) -> dict:
             "summary_differs": differs, "motions_equal": got["motions"] == ref_motions,
             "targets_reached": summary["targets_reached"], "learning_phases": summary["learning_phases"],
             "config": {k: v for k, v in config.to_dict().items()
-                       if k in ("seed", "n_targets", "population", "generations_per_phase")},
+                       if k in ("seed", "n_targets", "population", "tournament", "generations_per_phase", "ga")}
+            | ({"lanes": config.lanes} if config.ga == "hardware" else {}),
             "link": {role: {k: v[k] for k in ("bytes_sent", "bytes_received", "requests", "resends")}
                      for role, v in link.items()}}
 

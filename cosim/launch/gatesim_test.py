@@ -9,9 +9,9 @@ every board (``check``): the first motion or count that differs raises ``LinkMis
 
 - :func:`gate_motions`: the controller board alone: IDENTIFY, SET_REFLEX, then per genome
   LOAD_CONTROLLER and MOTION in every state of a seeded sample (a few hundred bytes).
-- :func:`gate_lifetime`: an on-line lifetime on the boards (one system board, or the controller
-  and the evaluator iCEBreakers side by side); writes ``summary.json``, ``motions.json``
-  (the motions executed) and ``link.json``.
+- :func:`gate_lifetime`: an on-line lifetime on the boards (one system board, the controller
+  and the evaluator iCEBreakers side by side, or with ``--ga hardware`` one learner board);
+  writes ``summary.json``, ``motions.json`` (the motions executed) and ``link.json``.
 
 Only cocotb imports this module.
 """
@@ -130,10 +130,21 @@ async def gate_lifetime(dut):
         from cosim.online.run import OnlineRun
 
         cfg = OnlineConfig(**config)
-        controller, evaluator = boards_over([LinkClient(line) for line in lines], reflex=cfg.reflex,
-                                            check=True, distance_rule=cfg.distance_rule)
-        run = OnlineRun(cfg, controller, evaluator, checkpoint=None,
-                        progress=bool(options.get("progress")), backend="uart")
+        clients = [LinkClient(line) for line in lines]
+        if cfg.ga == "hardware":  # the learner board: both boards on its one link (make_run's order)
+            from cosim.link.learning import learning_boards_over
+            from cosim.online.learning_phase import hardware_ga_config, hardware_seed
+
+            run = OnlineRun(cfg, None, None, checkpoint=None, progress=bool(options.get("progress")),
+                            backend="uart")
+            run.controller, run.evaluator = learning_boards_over(
+                *clients, hardware_ga_config(cfg), hardware_seed(cfg.seed), run.ga.ask(), reflex=cfg.reflex,
+                distance_rule=cfg.distance_rule, check=True)
+        else:
+            controller, evaluator = boards_over(clients, reflex=cfg.reflex, check=True,
+                                                distance_rule=cfg.distance_rule)
+            run = OnlineRun(cfg, controller, evaluator, checkpoint=None,
+                            progress=bool(options.get("progress")), backend="uart")
         run.run()
         write_results(run, out, plots=False)
         _write(out, "motions.json", {"interactions": run.interactions, "motions": list(run.motions)})
