@@ -4,8 +4,9 @@ A target of ``hdl.fpga.TARGETS`` is elaborated exactly as ``make bitstream`` bui
 top (``OnBoard``: its UART on the board's USB-serial pins, the board's oscillator as the clock,
 the UART at the real baud divisor) on its amaranth-boards platform, whose clock and reset logic
 comes with it (iCE40: the power-on-reset counter that holds the design in reset for 15 us while
-the BRAMs wake up; ECP5: the two-flip-flop reset synchroniser that drives GSR). No target has a
-PLL today: each runs at its board's oscillator (12 MHz iCEBreaker, 25 MHz ULX3S).
+the BRAMs wake up; ECP5: the two-flip-flop reset synchroniser that drives GSR). ``ulx3s-learner``
+runs at its ECP5 PLL's output (``hdl.ecp5_pll``; reset until LOCK): the harness drives the clock
+pin at that frequency and the EHXPLLL model (``hdl.ecp5_models``) passes it through.
 
 :func:`synthesize` runs the platform's own Yosys script (``synth_ice40`` / ``synth_ecp5``) and
 writes the synthesised netlist as Verilog beside the JSON nextpnr would place (``write_verilog

@@ -38,3 +38,36 @@ def test_controller_board_netlist_answers_the_host_like_the_reference(tmp_path):
     assert entry["divisor"] == 104 and entry["netlist"]["kind"] == "synth"
     # IDENTIFY, SET_REFLEX and the LOAD_CONTROLLER frames went over the line, bit by bit
     assert entry["link"]["bytes_sent"] > GENOMES * 119 and entry["link"]["resends"] == 0
+
+
+def test_the_engine_lifetime_is_only_the_learners(ehw):
+    """--ga hardware is ulx3s-learner's lifetime on its engine: any other target, or the routed
+    netlist, is one error line (before any synthesis)."""
+    from conftest import one_error
+
+    one_error(*ehw("gatesim", "icebreaker-controller", "--ga", "hardware")[::2], "ulx3s-learner")
+    one_error(*ehw("gatesim", "ulx3s-learner", "--ga", "hardware", "--netlist", "pnr")[::2], "--netlist pnr")
+    one_error(*ehw("gatesim", "ulx3s-learner", "--ga", "hardware", "--lanes", "0")[::2], "--lanes")
+
+
+def test_the_engine_lifetime_synthesises_the_engine_it_runs(monkeypatch):
+    """The learner's lifetime check builds its top for the lifetime's engine (population,
+    tournament, lanes) in a folder of its own, beside the bitstream's netlist."""
+    from cosim.launch import gatesim as launch
+    from cosim.online.config import OnlineConfig
+    from hdl import gatesim
+
+    asked = []
+
+    def synthesize(name, progress=print, engine=None):
+        asked.append((name, engine))
+        raise gatesim.GateSimError("stop here")
+
+    monkeypatch.setattr(gatesim, "synthesize", synthesize)
+    config = OnlineConfig(seed=1, n_targets=1, population=4, tournament=2, ga="hardware", lanes=3)
+    with pytest.raises(gatesim.GateSimError, match="stop here"):
+        launch.run_gatesim("ulx3s-learner", config=config, print_=lambda *_: None)
+    (name, engine), = asked
+    assert name == "ulx3s-learner" and (engine.population, engine.tournament, engine.lanes) == (4, 2, 3)
+    assert launch.learns_on_engine("ulx3s-learner", config)
+    assert not launch.learns_on_engine("ulx3s-learner", OnlineConfig(seed=1))
