@@ -5,8 +5,11 @@ CLKOP instead of the oscillator: :func:`add_pll_domain` replaces the platform's 
 domain (amaranth's ``LatticePlatform.create_missing_domain``) with the same reset scheme on the
 PLL's clock. The fabric is held in reset by the global set/reset (SGSR, active low) until the
 PLL is locked: LOCK goes through two flip-flops on CLKOP into SGSR, as amaranth's own domain does
-with its reset pin. nextpnr is told the CLKOP frequency (``add_clock_constraint``), so its timing
-report says whether the routed design meets the clock it runs at.
+with its reset pin. nextpnr derives CLKOP's frequency from the dividers and the oscillator pin's
+constraint ("Derived frequency constraint of 30.0 MHz for net clk"), so its timing report says
+whether the routed design meets the clock it runs at, and ``hdl.fpga`` finds no clock at the
+frequency asked if the dividers made another. (A constraint on the PLL's output net by name would
+be lost: Yosys merges it into the ``sync`` clock's net.)
 
 :func:`pll_params` chooses the dividers as Lattice's ``ecppll`` does for one output fed back
 from CLKOP: f_out = f_in / CLKI_DIV * CLKFB_DIV exactly, the phase detector's input f_in / CLKI_DIV
@@ -94,5 +97,4 @@ def add_pll_domain(m: Module, platform, out_hz: float) -> Signal:
     # as amaranth's own sync domain: GSR resets every flip-flop, so the domain has no reset
     m.domains.sync = ClockDomain("sync", reset_less=True)
     m.d.comb += ClockSignal("sync").eq(clk_out)
-    platform.add_clock_constraint(clk_out, out_hz)
     return lock
