@@ -11,7 +11,7 @@ one core against the learning engine on the chip (SPEC section 12, issue 14).
   (``onchip_fmax_source`` says which build). A build that records no clock gives no time.
 - ``onchip_learning_speedup_vs_numpy``: the ratio, per model, at that clock.
 - ``onchip_learning_speedup_at_fmax``: the same at the routed Fmax: what the engine as routed would
-  give clocked at its Fmax (a PLL it does not have yet), never the chip as built.
+  give clocked at its Fmax (a PLL set to it), never the chip as built.
 - ``onchip_clock_for_10x_mhz``: the clock at which the engine with ``onchip_lanes`` lanes is 10x
   the NumPy GA (its cycles x 10 / the NumPy time), per model: the Fmax a build must reach.
 - ``hardware_ga_reference_phase_s``: the same phase in ``ga.hardware_ga`` (the bit-exact NumPy
