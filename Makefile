@@ -48,7 +48,7 @@ help:
 	@echo "make verilog   build/verilog/*.v"
 	@echo "make formal    the formal proofs (Yosys SAT) -> results/formal.json (docs/formal.md)"
 	@echo "make bitstream FPGA bitstreams -> build/fpga/<target>/, results/fpga.json (FPGA_TARGETS=...), gate-level check"
-	@echo "make gatesim   the bitstream targets' synthesised (and iCE40's routed) netlists driven by the host code over their UART pins -> results/gatesim.json (GATESIM_TARGETS=..., GATESIM_PNR_TARGETS=...)"
+	@echo "make gatesim   the bitstream targets' synthesised (and iCE40's routed) netlists driven by the host code over their UART pins -> results/gatesim.json (GATESIM_TARGETS=..., GATESIM_PNR_TARGETS=..., GATESIM_LEARNER=1)"
 	@echo "make report    ehw report: results/model_based/latest/report.html (RUN=DIR: another run folder; ehw replay RUN_DIR: the video alone)"
 	@echo "make browser-tools  playwright and Debian's chromium for the report's browser test (make test installs them)"
 	@echo "make bench     speed figures -> results/bench/latest/bench.json, merged into results/bench.json"
@@ -159,12 +159,16 @@ bitstream: $(FPGA_STAMP) hdl-tools
 # (cosim/launch/gatesim.py; docs/fpga.md). GATESIM_TARGETS: default the first three targets
 # (ulx3s-learner only when named). Then the iCE40 targets' netlists as nextpnr placed and routed
 # them (GATESIM_PNR_TARGETS; nextpnr comes with the `fpga` extra). Minutes a target;
-# tests/test_gatesim.py runs the smallest.
+# tests/test_gatesim.py runs the smallest. GATESIM_LEARNER=1 adds ulx3s-learner: the bitstream's
+# netlist (motions, ~45 min) and a lifetime on its engine built for a population of 4 (~1.5 h).
 GATESIM_TARGETS ?=
 GATESIM_PNR_TARGETS ?= icebreaker-controller icebreaker-evaluator
+GATESIM_LEARNER ?=
 gatesim: $(FPGA_STAMP) hdl-tools
 	$(EHW) gatesim $(GATESIM_TARGETS) $(ARGS)
 	$(if $(strip $(GATESIM_PNR_TARGETS)),$(EHW) gatesim --netlist pnr $(GATESIM_PNR_TARGETS) $(ARGS))
+	$(if $(strip $(GATESIM_LEARNER)),$(EHW) gatesim ulx3s-learner $(ARGS))
+	$(if $(strip $(GATESIM_LEARNER)),$(EHW) gatesim ulx3s-learner --ga hardware $(ARGS))
 
 bench: $(STAMP) hdl-tools
 	$(EHW) bench $(ARGS)
