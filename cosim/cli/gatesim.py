@@ -82,7 +82,8 @@ def cmd_gatesim(args, extras: dict, sub=None) -> int:
     for name in names:
         entry = run_gatesim(name, config=config, genomes=args.genomes, states=args.states, seed=args.seed,
                             simulator=args.simulator, kind=args.netlist, progress=not args.no_progress)
-        write_results(args.results, name if args.netlist == "synth" else f"{name}:pnr", entry)
+        key = f"{name}:pnr" if args.netlist == "pnr" else f"{name}:engine" if args.ga == "hardware" else name
+        write_results(args.results, key, entry)
         verdict = "EQUAL to the reference" if entry["equal_to_reference"] else "DIFFERS from the reference"
         print(f"{name}: {entry['check']} on the {entry['netlist']['kind']} netlist in {entry['simulator']}: "
               f"{entry['interactions']} interactions, {verdict} ({entry['wall_s']:.0f} s)"

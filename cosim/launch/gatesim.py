@@ -25,7 +25,8 @@ routed for the bitstream (``hdl.gatesim.place_and_route``, iCE40). Per target th
   ~18 hours at gate level, so this netlist is the same top synthesised for the lifetime's
   ``--population``, ``--tournament`` and ``--lanes`` (default the bitstream's 7).
 
-``results/gatesim.json`` holds ``targets.<target>``: ``netlist`` (kind, tool), ``simulator``,
+``results/gatesim.json`` holds ``targets.<target>`` (``<target>:pnr`` for the routed netlist,
+``ulx3s-learner:engine`` for the lifetime on the engine): ``netlist`` (kind, tool), ``simulator``,
 ``check``, ``interactions``, ``equal_to_reference``, ``wall_s`` (synthesis and simulation), the
 clock, baud and divisor, the bytes over the line, and for a lifetime its configuration.
 """
