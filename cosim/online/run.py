@@ -286,9 +286,6 @@ class OnlineRun:
                 if reason in ("done", "budget"):
                     break
                 self.learn(reason, steps, s, a, detector)
-                if self.progress_bar is not None:  # alive between targets (a slow backend's legs)
-                    self.progress_bar.set_postfix(interactions=self.interactions, generations=self.generations,
-                                                  phases=len(self.phases))
                 self.wall_time_s += time.perf_counter() - t0
                 t0 = time.perf_counter()
                 if self.checkpoint_path is not None:
