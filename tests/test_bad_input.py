@@ -88,12 +88,19 @@ def test_a_failed_start_leaves_the_out_folder_as_it_was(ehw, tmp_path):
     assert files() == before and (tmp_path / "run/.lock").exists()
 
 
+def _as_in_the_foreground():
+    """A shell's background job (``make test &``) starts its children with SIGINT ignored, and
+    Python then never raises KeyboardInterrupt: the run under test gets the foreground's default."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def test_sigterm_prints_the_same_line_as_sigint(tmp_path):
     for signum, status in ((signal.SIGINT, 130), (signal.SIGTERM, 143)):
         proc = subprocess.Popen([sys.executable, "-m", "cosim.cli.main", "sim", "--targets", "64",
                                  "--out", str(tmp_path / signum.name), "--quiet", "--no-plots"],
                                 cwd=REPO_ROOT, stderr=subprocess.PIPE, text=True,
-                                env={**os.environ, "PYTHONPATH": str(REPO_ROOT)})
+                                env={**os.environ, "PYTHONPATH": str(REPO_ROOT)},
+                                preexec_fn=_as_in_the_foreground)
         deadline = time.monotonic() + 120
         while not (tmp_path / signum.name / ".lock").exists() and time.monotonic() < deadline:
             time.sleep(0.1)
