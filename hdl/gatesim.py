@@ -105,7 +105,7 @@ def cell_models(workdir: Path, family: str, simulator: str = "icarus") -> list[P
     has a ``$error`` in a generate branch (a syntax error to Icarus 11: copied into ``workdir``
     with that line commented out) and includes cells_ff.vh and cells_io.vh a second time
     (-DNO_INCLUDES, and both given once), without its DP16KD, a black box there; plus
-    :func:`hdl.ecp5_models.ecp5_extra_models` (DP16KD, SGSR, MULT18X18D). For Verilator, copies
+    :func:`hdl.ecp5_models.ecp5_extra_models` (DP16KD, SGSR, EHXPLLL, MULT18X18D). For Verilator, copies
     without the tristate tests (``_ICE40_VERILATOR``, ``_ICE40_ROUTED_VERILATOR``,
     ``_ECP5_VERILATOR``)."""
     share = yowasp_share()

@@ -130,22 +130,22 @@ async def gate_lifetime(dut):
         from cosim.online.run import OnlineRun
 
         cfg = OnlineConfig(**config)
-        clients = [LinkClient(line) for line in lines]
-        if cfg.ga == "hardware":  # the learner board: both boards on its one link (make_run's order)
-            from cosim.link.learning import learning_boards_over
-            from cosim.online.learning_phase import hardware_ga_config, hardware_seed
+        if cfg.ga == "hardware":  # the learner board: the uart backend's own boards, over this line
+            from cosim.online.run import make_run
 
-            run = OnlineRun(cfg, None, None, checkpoint=None, progress=bool(options.get("progress")),
-                            backend="uart")
-            run.controller, run.evaluator = learning_boards_over(
-                *clients, hardware_ga_config(cfg), hardware_seed(cfg.seed), run.ga.ask(), reflex=cfg.reflex,
-                distance_rule=cfg.distance_rule, check=True)
+            (line,) = lines
+            simulated.activate(line)
+            try:
+                run = make_run(cfg, "uart", progress=bool(options.get("progress")))
+                run.run()
+            finally:
+                simulated.activate(None)
         else:
-            controller, evaluator = boards_over(clients, reflex=cfg.reflex, check=True,
-                                                distance_rule=cfg.distance_rule)
+            controller, evaluator = boards_over([LinkClient(line) for line in lines], reflex=cfg.reflex,
+                                                check=True, distance_rule=cfg.distance_rule)
             run = OnlineRun(cfg, controller, evaluator, checkpoint=None,
                             progress=bool(options.get("progress")), backend="uart")
-        run.run()
+            run.run()
         write_results(run, out, plots=False)
         _write(out, "motions.json", {"interactions": run.interactions, "motions": list(run.motions)})
         write_link_summary(run, out)
