@@ -93,31 +93,24 @@ WORD = 32  # the word of the state-set helpers below: one machine word in a simu
 
 def _bit_of(m, bits, index, name: str):
     """``bits[index]`` for a variable ``index`` (``len(bits)`` = 2^len(index), a multiple of
-    ``WORD``), as a Signal ``name``: a balanced tree of 2:1 muxes, the high bits of ``index``
-    picking the 32-bit word first. The same function as ``bits.bit_select(index, 1)``, which Yosys
-    writes as one ``len(bits)``-bit shift (a multi-word shift in Verilator:
-    docs/hdl_in_the_loop.md); no shift at all, because Yosys's ``share`` pass merges shifts used
-    in exclusive states into one with multiplexed operands, which joins unrelated paths (the host's
-    state write to the trace loop)."""
+    ``WORD``), as a Signal ``name``: a balanced mux tree picks the 32-bit word, a 32-bit shift the
+    bit. The same function as ``bits.bit_select(index, 1)``, which Yosys writes as one
+    ``len(bits)``-bit shift (a multi-word shift in Verilator: docs/hdl_in_the_loop.md)."""
     level = [bits[i:i + WORD] for i in range(0, len(bits), WORD)]
     for b in range(exact_log2(WORD), len(index)):
         level = [Mux(index[b], level[i + 1], level[i]) for i in range(0, len(level), 2)]
-    level = list(level[0])
-    for b in range(exact_log2(WORD)):
-        level = [Mux(index[b], level[i + 1], level[i]) for i in range(0, len(level), 2)]
     bit = Signal(name=name)
-    m.d.comb += bit.eq(level[0])
+    m.d.comb += bit.eq(level[0].bit_select(index[:exact_log2(WORD)], 1))
     return bit
 
 
 def _one_hot(m, index, width: int, name: str):
     """The ``width``-bit one-hot of a variable ``index`` (width = 2^len(index)), as a Signal
-    ``name``: a 32-bit decode of the low bits placed in the word the high bits select. The same
-    function as ``Const(1, width) << index``, which Yosys writes as a (2 width - 1)-bit shift
-    (and no shift at all: ``_bit_of``)."""
+    ``name``: a 32-bit one-hot of the low bits placed in the word the high bits select. The same
+    function as ``Const(1, width) << index``, which Yosys writes as a (2 width - 1)-bit shift."""
     low_bits = exact_log2(WORD)
     low = Signal(WORD, name=f"{name}_low")
-    m.d.comb += low.eq(Cat(index[:low_bits] == i for i in range(WORD)))
+    m.d.comb += low.eq(Const(1, 1) << index[:low_bits])
     hot = Signal(width, name=name)
     m.d.comb += hot.eq(Cat(Mux(index[low_bits:] == w, low, 0) for w in range(width // WORD)))
     return hot
@@ -132,20 +125,6 @@ def _lowest_set(bits, lo: int, hi: int):
     any_lo, idx_lo = _lowest_set(bits, lo, mid)
     any_hi, idx_hi = _lowest_set(bits, mid, hi)
     return any_lo | any_hi, Cat(Mux(any_lo, idx_lo, idx_hi), ~any_lo)
-
-
-def _lowest_two(bits, lo: int, hi: int):
-    """(any1, index1 - lo, any2, index2 - lo) of the two lowest set bits of ``bits[lo:hi]`` (hi - lo
-    a power of 2), as ``_lowest_set``'s tree: the second of a pair of halves is the low half's
-    second, else (the low half has one) the high half's first, else the high half's second."""
-    if hi - lo == 1:
-        return bits[lo], Const(0, 0), Const(0, 1), Const(0, 0)
-    mid = (lo + hi) // 2
-    a1_lo, i1_lo, a2_lo, i2_lo = _lowest_two(bits, lo, mid)
-    a1_hi, i1_hi, a2_hi, i2_hi = _lowest_two(bits, mid, hi)
-    first = Cat(Mux(a1_lo, i1_lo, i1_hi), ~a1_lo)
-    second = Mux(a2_lo, Cat(i2_lo, Const(0, 1)), Cat(Mux(a1_lo, i1_hi, i2_hi), Const(1, 1)))
-    return a1_lo | a1_hi, first, a2_lo | (a1_lo & a1_hi) | a2_hi, second
 
 
 class EvaluatorEHW(wiring.Component):
@@ -235,21 +214,6 @@ class EvaluatorEHW(wiring.Component):
             "n_states": Out(COUNT_BITS),
         })
 
-    def _registered_pick(self, m, in_set, tested, value_hot, add_state, cur, tracing):
-        """(any, state) of the smallest untested state of S, from registers. Each cycle registers
-        the two smallest states of this cycle's untested set U (in Idle: of S as the next edge
-        leaves it, ``tested`` being empty there); a cycle's smallest is then the
-        first of them, or the second when the first is ``cur``, the state issued in between (the
-        issued state leaves U; a state outside U leaves U as it is)."""
-        source = Signal(N_STATES)  # (tested is empty in Idle: finish clears it)
-        m.d.comb += source.eq(Mux(add_state, in_set | value_hot, in_set) & ~tested)
-        any1, first, any2, second = _lowest_two(source, 0, N_STATES)
-        has1, has2 = Signal(), Signal()
-        p1, p2 = Signal(N_INPUTS), Signal(N_INPUTS)
-        m.d.sync += [has1.eq(any1), has2.eq(any2), p1.eq(first), p2.eq(second)]
-        taken = tracing & (p1 == cur)
-        return Mux(taken, has2, has1), Mux(taken, p2, p1)
-
     def elaborate(self, platform):
         m = Module()
         k, W = self.k, self.row_bits
@@ -306,12 +270,9 @@ class EvaluatorEHW(wiring.Component):
         loop_hit = goes_on & in_trace  # (iv)
         follow = goes_on & ~in_tested  # trace (and so tested) does not hold s2: continue there
 
-        if self.lookahead:  # the next trace start from registers: no priority encoder in the loop
-            pick_any, pick_state = self._registered_pick(m, in_set, tested, value_hot, add_state, cur, tracing)
-        else:
-            untested = Signal(N_STATES)
-            m.d.comb += untested.eq(in_set & ~tested)
-            pick_any, pick_state = _lowest_set(untested, 0, N_STATES)
+        untested = Signal(N_STATES)
+        m.d.comb += untested.eq(in_set & ~tested)
+        pick_any, pick_state = _lowest_set(untested, 0, N_STATES)
 
         x = Signal(N_INPUTS)  # the state issued this cycle
         motion = Signal(N_OUTPUTS)
@@ -356,12 +317,7 @@ class EvaluatorEHW(wiring.Component):
             rate_wr.en.eq(self.rate.we & self.ready),
         ]
 
-        if self.lookahead:  # each candidate's one-hot beside the decision, not after it
-            onehot = Signal(N_STATES)
-            m.d.comb += onehot.eq(Mux(follow, _one_hot(m, s2, N_STATES, "s2_hot"),
-                                      _one_hot(m, pick_state, N_STATES, "pick_hot")))
-        else:
-            onehot = _one_hot(m, x, N_STATES, "x_hot")
+        onehot = _one_hot(m, x, N_STATES, "x_hot")
 
         def issue_state(new_trace):
             """Test x: mark it, remember it for the next cycle (its entry is read meanwhile)."""
@@ -380,7 +336,6 @@ class EvaluatorEHW(wiring.Component):
                 self.fails.eq(acc_fails + step_fails),
                 self.cycles.eq(acc_cycles + 1),
                 self.done.eq(1),
-                tested.eq(0),  # empty for the next start (and for Idle's registered pick)
             ]
 
         m.d.sync += self.done.eq(0)
@@ -403,6 +358,7 @@ class EvaluatorEHW(wiring.Component):
                         m.d.sync += arch.eq(shadow_next)
                     m.d.sync += [
                         reflex_r.eq(self.reflex_en),
+                        tested.eq(0),
                         acc_crashes.eq(0),
                         acc_loops.eq(0),
                         acc_distance.eq(0),
