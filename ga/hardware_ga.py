@@ -74,7 +74,7 @@ import numpy as np
 from ga.evaluator import EvalResult, evaluate_population
 from ga.fail_rates import RATE_ONE, prior_codes
 from ga.genome import LITERAL_MASK, N_ROWS, OUTPUT_MASK, OUTPUT_SHIFT, ROW_DTYPE, validate_rows
-from ga.motions import MAX_MOTION_DISTANCE_MM, N_STATES, OBSTACLE_MASK
+from ga.motions import DEFAULT_DISTANCE_RULE, MAX_MOTION_DISTANCE_MM, N_STATES, OBSTACLE_MASK
 from ga.operators import CONTRADICTION, DEFAULT_LITERAL_P, DONT_CARE, NEGATIVE, POSITIVE, row_fires, row_outputs
 from ga.world_model import WorldModel
 from ga.xorshift import (  # noqa: F401  (the random source; re-exported for hdl.learner*, tests)
@@ -356,7 +356,7 @@ class HardwareGA:
         children[0] = pop[first_best(self.scores)]  # the elite
         return children
 
-    def run_pass(self, model: WorldModel, reflex: bool = True, distance_rule: str = "covered",
+    def run_pass(self, model: WorldModel, reflex: bool = True, distance_rule: str = DEFAULT_DISTANCE_RULE,
                  avoid: tuple[int, int] | None = None, rates=None) -> None:
         """One pass; ``rates``: the board's failure-rate codes (256, 8), None for a cleared
         board's (``PRIOR_CODE`` everywhere, the engine after reset)."""
@@ -377,7 +377,7 @@ class HardwareGA:
         self.cycles += pass_cycles(model.n_states, self.config)
 
     def learn(self, model: WorldModel, generations: int, reflex: bool = True,
-              distance_rule: str = "covered", avoid: tuple[int, int] | None = None, rates=None):
+              distance_rule: str = DEFAULT_DISTANCE_RULE, avoid: tuple[int, int] | None = None, rates=None):
         """``generations`` passes on ``model`` (and the rate codes ``rates``: see `run_pass`).
         Returns (the download (50,), its (crashes, loops, distance), the cycles the engine
         takes); its fail count is ``counts.fails[download_index]``. The download is the best of
@@ -448,7 +448,7 @@ class HardwareGA:
 
 def learn(world_model: WorldModel, population, generations: int, seed: int,
           config: HardwareGAConfig | None = None, reflex: bool = True,
-          distance_rule: str = "covered", avoid: tuple[int, int] | None = None, rates=None):
+          distance_rule: str = DEFAULT_DISTANCE_RULE, avoid: tuple[int, int] | None = None, rates=None):
     """One learning phase from scratch: a fresh engine seeded with ``seed`` holding
     ``population`` (its first pass only evaluates), with the rate codes ``rates`` (None: a
     cleared board's). Returns (best rows, the last population, counts (crashes, loops, distance)

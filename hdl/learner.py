@@ -82,7 +82,7 @@ from amaranth.lib.wiring import In, Out
 from ga import hardware_ga as hg
 from ga.fail_rates import FAIL_BITS
 from ga.genome import N_ROWS, ROW_BITS
-from ga.motions import MAX_MOTION_DISTANCE_MM, N_INPUTS, N_OUTPUTS
+from ga.motions import DEFAULT_DISTANCE_RULE, MAX_MOTION_DISTANCE_MM, N_INPUTS, N_OUTPUTS
 from hdl.learner_lane import ROW_INDEX_BITS, TAU_BITS, Lane, broadcast, index_bits, model_ports
 from hdl.ports import COUNT_BITS, DISTANCE_BITS
 
@@ -113,7 +113,7 @@ class Learner(wiring.Component):
     Ports: see the module docstring (host protocol).
     """
 
-    def __init__(self, config: hg.HardwareGAConfig, distance_rule: str = "covered"):
+    def __init__(self, config: hg.HardwareGAConfig, distance_rule: str = DEFAULT_DISTANCE_RULE):
         if not isinstance(config, hg.HardwareGAConfig):
             raise TypeError(f"config must be a HardwareGAConfig, got {config!r}")
         self.config = config

@@ -13,7 +13,7 @@ from amaranth.lib.wiring import In, Out
 from ga import hardware_ga as hg
 from ga.fail_rates import FAIL_BITS
 from ga.genome import N_ROWS, OUTPUT_SHIFT, ROW_BITS
-from ga.motions import N_INPUTS, N_OUTPUTS
+from ga.motions import DEFAULT_DISTANCE_RULE, N_INPUTS, N_OUTPUTS
 from ga.operators import CONTRADICTION, DONT_CARE, NEGATIVE, POSITIVE
 from hdl.evaluator_ehw import EvaluatorEHW
 from hdl.ports import COUNT_BITS, DISTANCE_BITS, ModelWriteSignature, RateWriteSignature, row_addr_bits
@@ -65,7 +65,7 @@ class Lane(wiring.Component):
     evaluator.
     """
 
-    def __init__(self, config: hg.HardwareGAConfig, index: int, distance_rule: str = "covered"):
+    def __init__(self, config: hg.HardwareGAConfig, index: int, distance_rule: str = DEFAULT_DISTANCE_RULE):
         self.config = config
         self.index = index
         self.distance_rule = distance_rule

@@ -31,6 +31,7 @@ Commands (``hdl.link_protocol.DESIGN_COMMANDS[Design.LEARNER]``):
 from amaranth.hdl import Cat, Mux, Signal
 
 from ga.genome import GENOME_BITS, N_ROWS, ROW_BITS
+from ga.motions import DEFAULT_DISTANCE_RULE
 from hdl.controller_ehw import ControllerEHW
 from hdl.learner import Learner
 from hdl.link_protocol import (LEARN_REPLY, LEARN_REQUEST, LOAD_GENOME_REQUEST, READ_GENOME_REQUEST,
@@ -53,7 +54,7 @@ class LearnerLinkTop(_LinkTop):
     DESIGN = Design.LEARNER
 
     def __init__(self, clk_freq_hz: float, baud: float = DEFAULT_BAUD, *, config,
-                 distance_rule: str = "covered", **kwargs):
+                 distance_rule: str = DEFAULT_DISTANCE_RULE, **kwargs):
         self.config = config
         self.distance_rule = distance_rule
         self.P_MAX = config.population

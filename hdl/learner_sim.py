@@ -5,6 +5,7 @@
 from __future__ import annotations
 
 from ga import hardware_ga as hg
+from ga.motions import DEFAULT_DISTANCE_RULE
 from hdl.learner import Learner
 from hdl.learning_system_top import LearnerHost
 from hdl.ports import AmaranthPins
@@ -26,7 +27,7 @@ class _CountingPins(AmaranthPins):
 
 
 def simulate_learning(config: hg.HardwareGAConfig, seed: int, population, phases,
-                      read_population: bool = True, distance_rule: str = "covered"):
+                      read_population: bool = True, distance_rule: str = DEFAULT_DISTANCE_RULE):
     """Run a Learner in Amaranth's simulator: seed it, write ``population``, then for each
     ``(observations, generations[, avoid[, rates]])`` of ``phases`` apply the observations (a list
     of (state, motion, next_state, crashed), host mirror ``ga.world_model.WorldModel``), write the

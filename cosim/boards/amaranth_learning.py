@@ -21,6 +21,7 @@ import numpy as np
 from cosim.boards.amaranth_backend import SIM_PERIOD_S, BoardMismatch, SimulatorJobs
 from cosim.boards.interfaces import LearnResult
 from cosim.boards.reference import ReferenceLearningBoard, checked_state_dict
+from ga.motions import DEFAULT_DISTANCE_RULE
 
 
 class HDLLearningBoard:
@@ -29,7 +30,7 @@ class HDLLearningBoard:
     ``cycles`` register + the start edge, checked against the reference's count)."""
 
     def __init__(self, call, host, config, seed: int, population, reflex: bool = True,
-                 distance_rule: str = "covered", check: bool = True):
+                 distance_rule: str = DEFAULT_DISTANCE_RULE, check: bool = True):
         from ga.world_model import WorldModel
 
         self.call, self.host = call, host
@@ -103,7 +104,7 @@ class _LearnerSimulator(SimulatorJobs):
 
 class AmaranthLearningBoard(HDLLearningBoard):
     def __init__(self, config, seed: int, population, reflex: bool = True,
-                 distance_rule: str = "covered", check: bool = True):
+                 distance_rule: str = DEFAULT_DISTANCE_RULE, check: bool = True):
         from hdl.learning_system_top import LearnerHost
 
         self.simulator = _LearnerSimulator(config, distance_rule)

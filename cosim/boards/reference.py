@@ -106,7 +106,7 @@ class ReferenceLearningBoard:
     and the rate codes (``rates``, (256, 8), ``ga.fail_rates``)."""
 
     def __init__(self, config, seed: int, population, reflex: bool = True,
-                 distance_rule: str = "covered"):
+                 distance_rule: str = DEFAULT_DISTANCE_RULE):
         from ga.fail_rates import prior_codes
         from ga.hardware_ga import HardwareGA
         from ga.motions import motion_distances

@@ -116,7 +116,7 @@ LEARNING_BACKENDS = ("reference", *_LEARNING_FACTORIES)
 
 
 def make_learning_boards(backend: str, config, seed: int, population, *, controller=None,
-                         reflex: bool = True, distance_rule: str = "covered"):
+                         reflex: bool = True, distance_rule: str = DEFAULT_DISTANCE_RULE):
     """(controller board, learning board) of the named backend: the learning board holds
     ``population``, its generators seeded with ``seed`` (32 bits), and an empty world model. On a
     learner top (``_LEARNING_TOPS``) both boards come from the top; elsewhere the learning board

@@ -23,6 +23,7 @@ from cosim.boards.interfaces import LearnResult
 from cosim.boards.reference import ReferenceLearningBoard, checked_state_dict
 from cosim.link.boards import LinkControllerBoard, LinkMismatch, LinkModelBoard
 from cosim.link.host import LinkClient, LinkError, pack, unpack
+from ga.motions import DEFAULT_DISTANCE_RULE
 from hdl.link_protocol import (
     LEARN_REPLY,
     LEARN_REQUEST,
@@ -44,7 +45,7 @@ class LinkLearningBoard(LinkModelBoard):
     population is checked against IDENTIFY's ``p_max``; the lanes and rates are the build's)."""
 
     def __init__(self, client: LinkClient, config, seed: int, population, reflex: bool = True,
-                 distance_rule: str = "covered", check: bool = True):
+                 distance_rule: str = DEFAULT_DISTANCE_RULE, check: bool = True):
         from ga.world_model import WorldModel
 
         self.client = client
@@ -121,7 +122,7 @@ class LinkLearningBoard(LinkModelBoard):
 
 
 def learning_boards_over(client: LinkClient, config, seed: int, population, *, reflex: bool = True,
-                         distance_rule: str = "covered", check: bool = True):
+                         distance_rule: str = DEFAULT_DISTANCE_RULE, check: bool = True):
     """(controller board, learning board) of the ``ehw-learner`` board behind ``client``, both
     over its one link: the controller board beside the engine drives the robot with the downloads.
     Checks the board's design first; the controller board starts empty, as the reference."""
@@ -134,7 +135,7 @@ def learning_boards_over(client: LinkClient, config, seed: int, population, *, r
 
 
 def make_serial_learning_boards(config, seed: int, population, *, reflex: bool = True,
-                                distance_rule: str = "covered", check: bool = True,
+                                distance_rule: str = DEFAULT_DISTANCE_RULE, check: bool = True,
                                 port: str | None = None, baud: float | None = None):
     """The ``serial`` backend's boards with ``--ga hardware``: (controller board, learning board)
     of one ``ulx3s-learner`` board on a serial port (default ``EHW_PORT``, ``EHW_BAUD``; ``ehw sim
