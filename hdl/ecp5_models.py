@@ -34,6 +34,26 @@ module SGSR(input GSR, input CLK);
 endmodule
 """
 
+# The cells only nextpnr-ecp5's routed netlist has (``hdl.gatesim_ecp5``): GSR (the global set/reset
+# as placed: a no-op, as SGSR), DCCA (the global clock buffer: CLKO = CLKI while CE) and TRELLIS_RAMW
+# (the write-port slice of a LUT RAM: it passes the write address and data of its four RAM LUTs
+# through, as nextpnr's ecp5 arch maps them: A0 -> WADO3, B0 -> WADO1, C0 -> WADO2, D0 -> WADO0,
+# A1 -> WDO1, B1 -> WDO3, C1 -> WDO0, D1 -> WDO2).
+_ROUTED = """
+module GSR #(parameter MODE = "ACTIVE_LOW", parameter SYNCMODE = "SYNC") (input GSR, input CLK);
+endmodule
+
+module DCCA(input CLKI, input CE, output CLKO);
+    assign CLKO = CLKI & CE;
+endmodule
+
+module TRELLIS_RAMW(input A0, B0, C0, D0, A1, B1, C1, D1,
+                    output WADO0, WADO1, WADO2, WADO3, WDO0, WDO1, WDO2, WDO3);
+    assign {WADO3, WADO2, WADO1, WADO0} = {A0, C0, B0, D0};
+    assign {WDO3, WDO2, WDO1, WDO0} = {B1, D1, A1, C1};
+endmodule
+"""
+
 # EHXPLLL (hdl.ecp5_pll) as a gate-level simulation sees it: the harness drives the clock pin at the
 # PLL's output frequency, CLKOP is CLKI, and LOCK rises after LOCK_CYCLES edges. Only the one output
 # fed back from CLKOP that hdl.ecp5_pll configures is modelled.
@@ -235,7 +255,8 @@ def _dp16kd() -> str:
 
 
 def ecp5_extra_models() -> str:
-    """The Verilog of SGSR, EHXPLLL, MULT18X18D and DP16KD (the module docstring)."""
-    return _SGSR + _EHXPLLL + _MULT18X18D + _dp16kd()
+    """The Verilog of SGSR, EHXPLLL, MULT18X18D and DP16KD (the module docstring), and of GSR, DCCA
+    and TRELLIS_RAMW (a routed netlist's)."""
+    return _SGSR + _ROUTED + _EHXPLLL + _MULT18X18D + _dp16kd()
 
 __all__ = ["DP16KD_WIDTHS", "ecp5_extra_models"]

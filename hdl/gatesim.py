@@ -36,8 +36,8 @@ from amaranth.hdl import ClockSignal, Instance, Module
 from amaranth.lib import wiring
 from amaranth.lib.wiring import In, Out
 
-from base.errors import UserError
 from hdl.ecp5_models import ecp5_extra_models
+from hdl.gatesim_routed import GateSimError, prepare
 
 NETLIST_ROOT = Path("build/gatesim")
 # The two iCEBreakers of the paper's two-board arrangement, simulated side by side.
@@ -45,8 +45,6 @@ PAIR = ("icebreaker-controller", "icebreaker-evaluator")
 _META = "netlist.json"
 
 
-class GateSimError(UserError):
-    """A netlist that cannot be made (one ``error:`` line)."""
 
 
 def yowasp_share() -> Path:
@@ -81,8 +79,8 @@ def _patched(source: Path, replacements: dict[str, str]) -> str:
 _ICE40_VERILATOR = {"wire clken_pulled = CLOCK_ENABLE || CLOCK_ENABLE === 1'bz;":
                     "wire clken_pulled = CLOCK_ENABLE;"}
 # The routed cells' models pull an unconnected input up or down with ``=== 1'bz`` tests, which
-# Verilator refuses. ``place_and_route`` ties every such input to that value (``_tie_unconnected``)
-# and refuses a design with one still undriven (``_check_routed``), so these copies take each
+# Verilator refuses. ``place_and_route`` ties every such input to that value (``hdl.gatesim_routed``)
+# and refuses a design with one still undriven, so these copies take each
 # input as it is.
 _ICE40_ROUTED_VERILATOR = {
     **{f"wire {p}_pd = ({p} === 1'bz) ? 1'b0 : {p};": f"wire {p}_pd = {p};" for p in ("I0", "I1", "I2", "I3", "SR")},
@@ -296,64 +294,9 @@ def synthesize(target_name: str, root: Path | str = NETLIST_ROOT, *, progress=pr
     return result
 
 
-def _check_routed(design: dict, target_name: str) -> None:
-    """Refuse a routed design (nextpnr's ``--write`` JSON) in which an input of a cell is left
-    unconnected, constant x/z, or on a net nothing drives: the Verilator models take every input
-    as it is (``_ICE40_ROUTED_VERILATOR``), where the vendor's would pull it up or down."""
-    (top,) = design["modules"].values()
-    driven = {b for p in top["ports"].values() if p["direction"] != "output" for b in p["bits"]}
-    for cell in top["cells"].values():
-        driven.update(b for port, bits in cell["connections"].items()
-                      if cell["port_directions"].get(port) == "output" for b in bits)
-    for name, cell in top["cells"].items():
-        for port, direction in cell["port_directions"].items():
-            bits = cell["connections"].get(port)
-            if direction == "input" and (not bits or any(b in ("x", "z") or (isinstance(b, int) and b not in driven)
-                                                             for b in bits)):
-                raise GateSimError(f"{target_name}: the routed cell {name} ({cell['type']}) has its input {port} "
-                                   f"undriven; the routed netlist cannot be simulated with the models as read")
-
-
-def _join_global_inputs(design: dict, target_name: str) -> dict:
-    """``design`` with each clock pin's path into its global buffer made a net.
-
-    An iCE40 clock pin (a GBIN pad) reaches its global buffer by a dedicated wire that nextpnr's
-    ``--write`` leaves implicit: the SB_IO's ``GLOBAL_BUFFER_OUTPUT`` and the SB_GB
-    ``$gbuf_<pad>_io``'s input are both empty. The SB_GB gets the pad's pin as its input."""
-    (top,) = design["modules"].values()
-    cells = top["cells"]
-    for name, cell in cells.items():
-        if cell["type"] == "SB_IO" and cell["connections"].get("GLOBAL_BUFFER_OUTPUT") == []:
-            buffer = cells.get(f"$gbuf_{name}_io")
-            if buffer is None or buffer["connections"].get("USER_SIGNAL_TO_GLOBAL_BUFFER") != []:
-                raise GateSimError(f"{target_name}: the routed pad {name} feeds a global buffer that is "
-                                   f"not $gbuf_{name}_io with its input empty")
-            buffer["connections"]["USER_SIGNAL_TO_GLOBAL_BUFFER"] = list(cell["connections"]["PACKAGE_PIN"])
-            del cell["connections"]["GLOBAL_BUFFER_OUTPUT"]
-            del cell["port_directions"]["GLOBAL_BUFFER_OUTPUT"]
-    return design
-
-
-# What an unconnected input of a routed iCE40 cell is on the chip (the models' pull-ups and
-# pull-downs): 1 for the clock enables, 0 for the rest.
-_ICE40_PULLED = {"ICESTORM_LC", "ICESTORM_RAM", "SB_IO"}
-_ICE40_PULLED_UP = {"CEN", "RCLKE", "WCLKE", "CLOCK_ENABLE"}
-
-
-def _tie_unconnected(design: dict) -> dict:
-    """``design`` with every unconnected input of an iCE40 logic, RAM or I/O cell tied to the
-    value the chip (and the vendor model's ``=== 1'bz`` test) gives it, so that the Verilator
-    copies of the models, which take every input as it is, simulate the same logic."""
-    (top,) = design["modules"].values()
-    for cell in top["cells"].values():
-        if cell["type"] in _ICE40_PULLED:
-            for port, direction in cell["port_directions"].items():
-                if direction == "input" and not cell["connections"].get(port):
-                    cell["connections"][port] = ["1" if port in _ICE40_PULLED_UP else "0"]
-    return design
-
-
 # The families whose routed netlists simulate (see :func:`place_and_route`).
+# ECP5: hdl.gatesim_routed prepares nextpnr-ecp5's routed netlist and it simulates, but the routed
+# ulx3s-system does not answer IDENTIFY where its synthesised netlist does (docs/fpga.md).
 PNR_FAMILIES = ("ice40",)
 
 
@@ -363,24 +306,20 @@ def place_and_route(target_name: str, root: Path | str = NETLIST_ROOT, *, seed: 
 
     The arguments are the bitstream's (the platform's nextpnr command, ``seed`` and the target's
     own options, as ``hdl.fpga.build``), plus ``--write``: nextpnr writes the routed design back
-    as the cells of the chip (ICESTORM_LC, ICESTORM_RAM, SB_IO, SB_GB), which Yosys turns into
-    Verilog for the same cell models.
+    as the cells of the chip (iCE40: ICESTORM_LC, ICESTORM_RAM, SB_IO, SB_GB; ECP5: TRELLIS_COMB,
+    TRELLIS_FF, TRELLIS_RAMW, DP16KD, ...), rewritten as the cell models simulate them
+    (:mod:`hdl.gatesim_routed`: what the bitstream makes of an unconnected input, ...), which Yosys
+    turns into Verilog for the same cell models.
     The simulation is functional (no SDF delays): it checks what packing, placement and routing
     made of the logic (LUT input permutations, carry chains, the block RAM's configuration), not
-    the timing, which nextpnr's report covers.
-
-    iCE40 only (``PNR_FAMILIES``). nextpnr-ecp5 writes a routed netlist too (ulx3s-system: 3 minutes),
-    but its cells do not simulate with the wheel's models: an unconnected input means a constant that
-    each cell's ``*MUX`` parameter sets (``INV``, ``"0 "``; 31 DP16KD with every chip select, clock
-    enable and reset left so), TRELLIS_RAMW (the LUT RAMs' write port) and DCCA (the clock buffer)
-    have no model, and the DP16KD model of :mod:`hdl.ecp5_models` knows no ``*MUX``."""
+    the timing, which nextpnr's report covers."""
     import time
 
     from hdl.fpga import TARGETS, tool_env
 
     if target_name in TARGETS and TARGETS[target_name].family not in PNR_FAMILIES:
         raise GateSimError(f"{target_name}: the placed and routed netlist is simulated for iCE40 targets only "
-                           f"(the routed ECP5 cells have no models that simulate them; docs/fpga.md)")
+                           f"(the routed ECP5 netlist does not answer yet; docs/fpga.md)")
     synth = synthesize(target_name, root, progress=progress)
     out = synth.directory
     module = f"{synth.module}_pnr"
@@ -388,21 +327,18 @@ def place_and_route(target_name: str, root: Path | str = NETLIST_ROOT, *, seed: 
     meta = out / f"pnr_{_META}"
     options = f"--seed {seed} {TARGETS[target_name].nextpnr_opts}".strip()
     key = hashlib.sha256(f"{synth.key} {options}".encode()).hexdigest()
-    if meta.exists() and netlist.exists():
-        cached = json.loads(meta.read_text())
-        if cached.get("key") == key:
-            return GateNetlist(**cached)
-    env, tool = tool_env(), "NEXTPNR_ICE40"
+    env, tool = tool_env(), f"NEXTPNR_{synth.family.upper()}"
     found = re.search(rf'"\${tool}" (.*)', (out / "build_top.sh").read_text())
     if found is None:
         raise GateSimError(f"{target_name}: the platform's build script has no {tool} command")
     # the platform's arguments without its outputs (the bitstream's text, the log)
     words, outputs = found.group(1).split(), ("--asc", "--textcfg", "--log")
     args = [a for a, prev in zip(words, ["", *words]) if a != "--quiet" and outputs.count(a) + outputs.count(prev) == 0]
-    routed, stamp = out / "top.pnr.json", out / "top.pnr.key"  # nextpnr's own output, kept apart
+    # nextpnr's own output, cached; its rewriting (hdl.gatesim_routed, seconds) is made every time
+    routed, stamp = out / "top.pnr.json", out / "top.pnr.key"
     t0 = time.perf_counter()
     if not (routed.exists() and stamp.exists() and stamp.read_text() == key):
-        progress(f"{target_name}: placing and routing with nextpnr-ice40 ({options}; minutes)")
+        progress(f"{target_name}: placing and routing with nextpnr-{synth.family} ({options}; minutes)")
         try:
             run = subprocess.run([env[tool], "--quiet", *args, "--log", "pnr.log", "--write", routed.name,
                                   "--timing-allow-fail", *options.split()], cwd=out, capture_output=True, text=True,
@@ -415,8 +351,7 @@ def place_and_route(target_name: str, root: Path | str = NETLIST_ROOT, *, seed: 
             raise GateSimError(f"{target_name}: nextpnr failed (log: {out / 'pnr.log'}): {said}")
         stamp.write_text(key)
     design = json.loads(routed.read_text())
-    design = _tie_unconnected(_join_global_inputs(design, target_name))
-    _check_routed(design, target_name)
+    design = prepare(design, synth.family, target_name)
     (out / "top.pnr.sim.json").write_text(json.dumps(design))
     run = subprocess.run([yosys_command(), "-q", "-p", f"read_json top.pnr.sim.json; rename top {module}; "
                           f"write_verilog -noattr {netlist.name}"], cwd=out, capture_output=True, text=True)

