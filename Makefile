@@ -165,6 +165,7 @@ GATESIM_TARGETS ?=
 GATESIM_PNR_TARGETS ?= icebreaker-controller icebreaker-evaluator
 GATESIM_LEARNER ?=
 gatesim: $(FPGA_STAMP) hdl-tools
+	$(PY) -m pytest -n 0 -q -p no:cacheprovider tests/test_routed_netlist.py
 	$(EHW) gatesim $(GATESIM_TARGETS) $(ARGS)
 	$(if $(strip $(GATESIM_PNR_TARGETS)),$(EHW) gatesim --netlist pnr $(GATESIM_PNR_TARGETS) $(ARGS))
 	$(if $(strip $(GATESIM_LEARNER)),$(EHW) gatesim ulx3s-learner $(ARGS))

@@ -117,7 +117,10 @@ def cell_models(workdir: Path, family: str, simulator: str = "icarus") -> list[P
         raise GateSimError(f"no cell models for FPGA family {family!r}; known: ice40, ecp5")
     lattice = share / "lattice"
     (workdir / "ecp5_extra_sim.v").write_text(ecp5_extra_models())
-    no_error = {'$error("unsupported COMB mode': '// $error("unsupported COMB mode'}
+    # TRELLIS_COMB's CCU2 mode declares a local ``wire FCO`` instead of driving its output: the carry
+    # out of every routed carry cell would be z
+    no_error = {'$error("unsupported COMB mode': '// $error("unsupported COMB mode',
+                "\t\t\twire FCO = (": "\t\t\tassign FCO = ("}
     (workdir / "common_sim.vh").write_text(_patched(lattice / "common_sim.vh",
                                                     {**no_error, **(_ECP5_VERILATOR if verilator else {})}))
     (workdir / "ccu2c_sim.vh").write_text((lattice / "ccu2c_sim.vh").read_text())
@@ -295,7 +298,7 @@ def synthesize(target_name: str, root: Path | str = NETLIST_ROOT, *, progress=pr
 # The families whose routed netlists simulate (see :func:`place_and_route`).
 # ECP5: hdl.gatesim_routed prepares nextpnr-ecp5's routed netlist and it simulates, but the routed
 # ulx3s-system does not answer IDENTIFY where its synthesised netlist does (docs/fpga.md).
-PNR_FAMILIES = ("ice40",)
+PNR_FAMILIES = ("ice40", "ecp5")
 
 
 def place_and_route(target_name: str, root: Path | str = NETLIST_ROOT, *, seed: int = 1,

@@ -20,6 +20,8 @@ the netlist says what the bitstream says (nextpnr's ``ecp5/pack.cc`` and ``bitst
   with the LUT that drives it), from DI when 1;
 * a TRELLIS_COMB in the odd LUT of its slice (``NEXTPNR_BEL`` ``...K1``) drives OFX through the
   L6MUX (FXA, FXB), the even one through the PFUMX (F1, F): the model's ``IS_Z1``;
+* a pad's unconnected data and tristate inputs are low (an output pad is driven), the IOLOGIC's
+  (IOLDO, IOLTO) unused;
 * the RAMW_BLOCK LUTs (placeholders beside a LUT RAM's write port, nothing connected) are removed;
 * a LUT RAM's INITVAL, which nextpnr permutes into LUT-input order, is put back into address order,
   the order of the model's RAM.
@@ -47,6 +49,7 @@ _FF_PARAMS = {"GSR", "CEMUX", "CLKMUX", "LSRMUX", "SRMODE", "REGSET", "LSRMODE"}
 _DP16KD_HIGH = {"CLKA", "CLKB", "RSTA", "RSTB", "WEA", "WEB", "CEA", "CEB", "OCEA", "OCEB",
                 "CSA0", "CSA1", "CSA2", "CSB0", "CSB1", "CSB2"}
 _KEPT_MUX = {"CLKAMUX", "CLKBMUX"}  # the DP16KD model's own
+_IO_PORTS = {"B", "I", "T", "O"}
 
 
 def _inputs(cell: dict) -> list[str]:
@@ -169,6 +172,11 @@ def prepare_ecp5(design: dict) -> dict:
             _ff(name, cell)
         elif kind in ("DP16KD", "MULT18X18D"):
             _muxed(name, cell)
+        elif kind == "TRELLIS_IO":  # the IOLOGIC's data and tristate (IOLDO, IOLTO): bypassed
+            _drop_ports(cell, _IO_PORTS, name)
+            for port in ("I", "T"):
+                if _open(cell, port):
+                    _tie(cell, port, "0")
         elif kind == "DCCA" and _open(cell, "CE"):
             _tie(cell, "CE", "1")
     return design
