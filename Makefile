@@ -48,7 +48,7 @@ help:
 	@echo "make verilog   build/verilog/*.v"
 	@echo "make formal    the formal proofs (Yosys SAT) -> results/formal.json (docs/formal.md)"
 	@echo "make bitstream FPGA bitstreams -> build/fpga/<target>/, results/fpga.json (FPGA_TARGETS=...), gate-level check"
-	@echo "make gatesim   the bitstream targets' synthesised (and iCE40's routed) netlists driven by the host code over their UART pins -> results/gatesim.json (GATESIM_TARGETS=..., GATESIM_PNR_TARGETS=..., GATESIM_LEARNER=1)"
+	@echo "make gatesim   the bitstream targets' synthesised (and routed) netlists driven by the host code over their UART pins -> results/gatesim.json (GATESIM_TARGETS=..., GATESIM_PNR_TARGETS=..., GATESIM_LEARNER=1)"
 	@echo "make report    ehw report: results/model_based/latest/report.html (RUN=DIR: another run folder; ehw replay RUN_DIR: the video alone)"
 	@echo "make browser-tools  playwright and Debian's chromium for the report's browser test (make test installs them)"
 	@echo "make bench     speed figures -> results/bench/latest/bench.json, merged into results/bench.json"
@@ -157,12 +157,12 @@ bitstream: $(FPGA_STAMP) hdl-tools
 # Each bitstream target's board top as built, synthesised by Yosys and simulated with the vendor
 # cell models in Verilator, driven through its UART pins by the host code of --backend serial
 # (cosim/launch/gatesim.py; docs/fpga.md). GATESIM_TARGETS: default the first three targets
-# (ulx3s-learner only when named). Then the iCE40 targets' netlists as nextpnr placed and routed
+# (ulx3s-learner only when named). Then the first three targets' netlists as nextpnr placed and routed
 # them (GATESIM_PNR_TARGETS; nextpnr comes with the `fpga` extra). Minutes a target;
 # tests/test_gatesim.py runs the smallest. GATESIM_LEARNER=1 adds ulx3s-learner: the bitstream's
-# netlist (motions, ~45 min) and a lifetime on its engine built for a population of 4 (~1.5 h).
+# netlist (motions, ~45 min) and a lifetime on its engine built for a population of 4 (hours).
 GATESIM_TARGETS ?=
-GATESIM_PNR_TARGETS ?= icebreaker-controller icebreaker-evaluator
+GATESIM_PNR_TARGETS ?= icebreaker-controller icebreaker-evaluator ulx3s-system
 GATESIM_LEARNER ?=
 gatesim: $(FPGA_STAMP) hdl-tools
 	$(PY) -m pytest -n 0 -q -p no:cacheprovider tests/test_routed_netlist.py

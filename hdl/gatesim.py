@@ -295,9 +295,7 @@ def synthesize(target_name: str, root: Path | str = NETLIST_ROOT, *, progress=pr
     return result
 
 
-# The families whose routed netlists simulate (see :func:`place_and_route`).
-# ECP5: hdl.gatesim_routed prepares nextpnr-ecp5's routed netlist and it simulates, but the routed
-# ulx3s-system does not answer IDENTIFY where its synthesised netlist does (docs/fpga.md).
+# The families whose routed netlists simulate (see :func:`place_and_route`; hdl.gatesim_routed).
 PNR_FAMILIES = ("ice40", "ecp5")
 
 
@@ -319,8 +317,8 @@ def place_and_route(target_name: str, root: Path | str = NETLIST_ROOT, *, seed: 
     from hdl.fpga import TARGETS, tool_env
 
     if target_name in TARGETS and TARGETS[target_name].family not in PNR_FAMILIES:
-        raise GateSimError(f"{target_name}: the placed and routed netlist is simulated for iCE40 targets only "
-                           f"(the routed ECP5 netlist does not answer yet; docs/fpga.md)")
+        raise GateSimError(f"{target_name}: the placed and routed netlist is simulated for "
+                           f"{', '.join(PNR_FAMILIES)} targets only")
     synth = synthesize(target_name, root, progress=progress)
     out = synth.directory
     module = f"{synth.module}_pnr"

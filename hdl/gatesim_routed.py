@@ -27,8 +27,9 @@ the netlist says what the bitstream says (nextpnr's ``ecp5/pack.cc`` and ``bitst
   the order of the model's RAM.
 
 Anything else (a connected pin inverted by its ``*MUX``, an LSR preload) is refused with
-:class:`GateSimError` rather than simulated unchecked. (Not yet right as a whole: the routed
-ulx3s-system does not answer IDENTIFY, so ``hdl.gatesim.PNR_FAMILIES`` leaves ECP5 out.)
+:class:`GateSimError` rather than simulated unchecked. (And Yosys's TRELLIS_COMB model, which never
+drives its carry out, is patched by ``hdl.gatesim.cell_models``.) The routed ulx3s-system so
+prepared runs a lifetime equal to the reference (docs/fpga.md).
 """
 
 from __future__ import annotations

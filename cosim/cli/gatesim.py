@@ -21,7 +21,7 @@ def gatesim_parser(p) -> None:
                         "(default: %(default)s)")
     p.add_argument("--netlist", choices=("synth", "pnr"), default="synth",
                    help="Yosys's synthesised netlist, or nextpnr's placed and routed one (the "
-                        "bitstream's placement, seed 1; iCE40 targets) (default: %(default)s)")
+                        "bitstream's placement, seed 1) (default: %(default)s)")
     p.add_argument("--seed", type=int, default=1, help="the lifetime's seed; the motions check's genomes (default: %(default)s)")
     motions = p.add_argument_group("the motions check (icebreaker-controller, ulx3s-learner)")
     motions.add_argument("--genomes", type=int, default=3, help="random genomes loaded (default: %(default)s)")
