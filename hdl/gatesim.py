@@ -322,7 +322,6 @@ def place_and_route(target_name: str, root: Path | str = NETLIST_ROOT, *, seed: 
     synth = synthesize(target_name, root, progress=progress)
     out = synth.directory
     module = f"{synth.module}_pnr"
-    netlist = out / f"{module}.v"
     meta = out / f"pnr_{_META}"
     options = f"--seed {seed} {TARGETS[target_name].nextpnr_opts}".strip()
     key = hashlib.sha256(f"{synth.key} {options}".encode()).hexdigest()
@@ -349,13 +348,7 @@ def place_and_route(target_name: str, root: Path | str = NETLIST_ROOT, *, seed: 
             said = (run.stderr.strip() or run.stdout.strip())[-500:]
             raise GateSimError(f"{target_name}: nextpnr failed (log: {out / 'pnr.log'}): {said}")
         stamp.write_text(key)
-    design = json.loads(routed.read_text())
-    design = prepare(design, synth.family, target_name)
-    (out / "top.pnr.sim.json").write_text(json.dumps(design))
-    run = subprocess.run([yosys_command(), "-q", "-p", f"read_json top.pnr.sim.json; rename top {module}; "
-                          f"write_verilog -noattr {netlist.name}"], cwd=out, capture_output=True, text=True)
-    if run.returncode != 0:
-        raise GateSimError(f"{target_name}: Yosys could not read the routed design: {run.stderr.strip()[-500:]}")
+    netlist = routed_verilog(routed, synth.family, target_name, module)
     pnr_s = time.perf_counter() - t0
     netlist.write_text(_pin_directions(netlist.read_text(), {synth.clk: "input", synth.rx: "input",
                                                              synth.tx: "output"}))
@@ -363,6 +356,21 @@ def place_and_route(target_name: str, root: Path | str = NETLIST_ROOT, *, seed: 
                             "synth_s": round(synth.synth_s + pnr_s, 1)})
     meta.write_text(json.dumps(asdict(result), indent=1) + "\n")
     return result
+
+
+def routed_verilog(routed: Path, family: str, target_name: str, module: str) -> Path:
+    """nextpnr's ``--write`` JSON ``routed`` prepared for ``family``'s cell models
+    (:func:`hdl.gatesim_routed.prepare`) and written by Yosys as ``module`` in ``<module>.v`` beside
+    it (with the prepared JSON, ``<routed stem>.sim.json``; YoWASP's Yosys sees that folder only)."""
+    design = prepare(json.loads(routed.read_text()), family, target_name)
+    prepared, netlist = routed.with_suffix(".sim.json"), routed.parent / f"{module}.v"
+    prepared.write_text(json.dumps(design))
+    (top,) = design["modules"]
+    run = subprocess.run([yosys_command(), "-q", "-p", f"read_json {prepared.name}; rename {top} {module}; "
+                          f"write_verilog -noattr {netlist.name}"], cwd=routed.parent, capture_output=True, text=True)
+    if run.returncode != 0:
+        raise GateSimError(f"{target_name}: Yosys could not read the routed design: {run.stderr.strip()[-500:]}")
+    return netlist
 
 
 class NetlistTop(wiring.Component):
@@ -423,4 +431,4 @@ def harness_verilog(netlists: dict, name: str) -> str:
 
 __all__ = ["GateNetlist", "GateSimError", "NETLIST_ROOT", "NetlistTop", "PAIR", "PairHarness", "cell_models",
            "check_modelled", "harness_verilog", "modelled_cells", "module_name", "netlist_cells",
-           "PNR_FAMILIES", "place_and_route", "simulator_flags", "synthesize"]
+           "PNR_FAMILIES", "place_and_route", "routed_verilog", "simulator_flags", "synthesize"]

@@ -17,7 +17,6 @@ the 'fpga' extra: ``make gatesim`` runs this file first; 225 MB of chip database
 from __future__ import annotations
 
 import importlib.util
-import json
 import re
 import shutil
 import subprocess
@@ -203,7 +202,7 @@ module dut(input clk, input [7:0] a, input [7:0] b, input [3:0] sel, input we,
   assign lram = m[sel];
 endmodule
 """
-_OUTPUTS = ("cnt", "sum", "mux", "lram", "bram", "cmp")
+_WIDTHS = {"cnt": 8, "sum": 9, "mux": 1, "lram": 4, "bram": 8, "cmp": 8}  # the outputs compared
 # both netlists side by side on the same random inputs; a LUT RAM word not yet written is x in
 # the synthesised netlist's model and 0 on the chip (and in the routed one): not compared
 _ECP5_BENCH = """
@@ -237,20 +236,17 @@ def test_ecp5_routed_cells_simulate_as_synthesised(tmp_path):
     subprocess.run([nextpnr, "--quiet", "--25k", "--package", "CABGA381", "--json", "dut.json", "--write",
                     "routed.json", "--lpf-allow-unconstrained", "--seed", "1"], cwd=tmp_path, check=True,
                    capture_output=True)
-    design = routed.prepare(json.loads((tmp_path / "routed.json").read_text()), "ecp5", "dut")
-    (tmp_path / "routed.sim.json").write_text(json.dumps(design))
-    subprocess.run([yosys, "-q", "-p", "read_json routed.sim.json; rename top dut_pnr; write_verilog -noattr pnr.v"],
-                   cwd=tmp_path, check=True)
-    widths = {"cnt": 8, "sum": 9, "mux": 1, "lram": 4, "bram": 8, "cmp": 8}
-    checks = [f"if ({o}0 !== {o}1{' && ^' + o + '0 !== 1' + chr(39) + 'bx' if o == 'lram' else ''}) begin "
-              f'$display("%0d {o} %b %b", i, {o}0, {o}1); bad = bad + 1; end' for o in _OUTPUTS]
+    gatesim.routed_verilog(tmp_path / "routed.json", "ecp5", "dut", "dut_pnr")
+    written = {o: f" && ^{o}0 !== 1'bx" if o == "lram" else "" for o in _WIDTHS}
+    checks = [f"if ({o}0 !== {o}1{written[o]}) begin "
+              f'$display("%0d {o} %b %b", i, {o}0, {o}1); bad = bad + 1; end' for o in _WIDTHS]
     (tmp_path / "tb.v").write_text(_ECP5_BENCH % {
-        "wires": " ".join(f"wire [{w - 1}:0] {o}0, {o}1;" for o, w in widths.items()),
-        "syn": ", ".join(f".{o}({o}0)" for o in _OUTPUTS), "pnr": ", ".join(f".{o}({o}1)" for o in _OUTPUTS),
+        "wires": " ".join(f"wire [{w - 1}:0] {o}0, {o}1;" for o, w in _WIDTHS.items()),
+        "syn": ", ".join(f".{o}({o}0)" for o in _WIDTHS), "pnr": ", ".join(f".{o}({o}1)" for o in _WIDTHS),
         "checks": "\n      ".join(checks)})
     models = [str(m) for m in gatesim.cell_models(tmp_path / "cells", "ecp5", "icarus") if m.suffix == ".v"]
     include = gatesim.yowasp_share() / "lattice"
     subprocess.run(["iverilog", *gatesim.simulator_flags("ecp5"), "-I", str(tmp_path / "cells"), "-I", str(include),
-                    "-o", "tb.vvp", "tb.v", "syn.v", "pnr.v", *models], cwd=tmp_path, check=True, capture_output=True)
+                    "-o", "tb.vvp", "tb.v", "syn.v", "dut_pnr.v", *models], cwd=tmp_path, check=True, capture_output=True)
     said = subprocess.run(["vvp", "-n", "tb.vvp"], cwd=tmp_path, check=True, capture_output=True, text=True).stdout
     assert "mismatches 0" in said, said[-2000:]
