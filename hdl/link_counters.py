@@ -1,7 +1,7 @@
 """IDENTIFY's reply and the READ_COUNTERS fields of the host link in one block RAM (docs/fpga.md).
 
 The counters of ``COUNTERS_REPLY`` (frames executed, error replies, evaluator cycles) were 96
-flip-flops with their adders, and IDENTIFY's 31 constant bytes a multiplexer, on top of a board
+flip-flops with their adders, and IDENTIFY's 32 constant bytes a multiplexer, on top of a board
 that hardly fits an iCE40UP5K. Here both are bytes of a small RAM (one EBR on the iCE40): the
 sender reads a reply straight from it (``FrameSender`` fetches each payload byte by index, with
 time for a synchronous read), and a counter is updated byte by byte, a read and a write a byte,

@@ -41,7 +41,7 @@ from amaranth.lib.wiring import In, Out
 
 from ga.fail_rates import RATE_BITS
 from ga.genome import GENOME_BITS, N_ROWS, ROW_BITS
-from ga.motions import N_INPUTS, N_OUTPUTS
+from ga.motions import DISTANCE_RULES, N_INPUTS, N_OUTPUTS
 from hdl.ports import RESULT_LAYOUT, RowWriteSignature
 
 SYNC = 0xA5
@@ -148,12 +148,29 @@ IDENTIFY_REPLY = data.StructLayout({
     "p_max": 16,                # population slots (1: one controller at a time)
     "clk_freq_hz": 32,
     "baud": 32,
+    "distance_rule": 8,         # distance_rule_code: the rule the board's fitness counts (0: none)
 })
 COUNTERS_REPLY = data.StructLayout({
     "frames_ok": 32,            # frames executed
     "frames_rejected": 16,      # error replies sent
     "evaluator_cycles": 48,     # sum of the evaluations' cycles since reset
 })
+
+
+def distance_rule_code(rule: str | None) -> int:
+    """IDENTIFY's ``distance_rule`` byte: 0 for a board without a fitness (the controller), else
+    1 + the rule's index in ``ga.motions.DISTANCE_RULES``."""
+    return 0 if rule is None else 1 + DISTANCE_RULES.index(rule)
+
+
+def distance_rule_name(code: int) -> str | None:
+    """The rule of IDENTIFY's ``distance_rule`` byte (None: the board has no fitness); ValueError
+    for a code this host does not know."""
+    if code == 0:
+        return None
+    if not 1 <= code <= len(DISTANCE_RULES):
+        raise ValueError(f"unknown distance rule code {code!r}")
+    return DISTANCE_RULES[code - 1]
 
 
 def layout_bytes(layout) -> int:

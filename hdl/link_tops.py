@@ -27,7 +27,8 @@ from hdl.link_protocol import (ARG_BYTES, DEFAULT_TIMEOUT_S, DESIGN_COMMANDS, EV
                                MOTION_REQUEST, NAME_BYTES, OBSERVE_REQUEST, RATE_REQUEST,
                                READ_RESULTS_REQUEST, REFLEX_REQUEST, REQUEST_LENGTH, RESULT_BYTES, RESULT_REPLY,
                                RESULTS_PER_READ, Command, Design, FrameReceiver, FrameSender,
-                               RowAssembler, Status, default_build_id, layout_bytes)
+                               RowAssembler, Status, default_build_id, distance_rule_code,
+                               layout_bytes)
 from hdl.link_counters import COUNTERS_BASE, IDENTIFY_BASE, LinkCounters
 from hdl.uart import DEFAULT_BAUD, UART
 
@@ -149,7 +150,8 @@ class _LinkTop(wiring.Component):
         name = self.DESIGN.value.encode()
         return {"design": int.from_bytes(name.ljust(NAME_BYTES, b"\0"), "little"),
                 "layout_version": GENOME_LAYOUT_VERSION, "build_id": self.build_id,
-                "p_max": self.P_MAX, "clk_freq_hz": round(self.clk_freq_hz), "baud": round(self.baud)}
+                "p_max": self.P_MAX, "clk_freq_hz": round(self.clk_freq_hz), "baud": round(self.baud),
+                "distance_rule": distance_rule_code(getattr(self, "distance_rule", None))}
 
     def elaborate(self, platform):
         m = Module()

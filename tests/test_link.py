@@ -121,6 +121,7 @@ def test_controller_top_identifies_loads_and_moves():
     client, line = _client(ControllerLinkTop(CLK, BAUD, timeout_s=1e-4, build_id=0x1234))
     identity = client.identify()
     assert (identity.design, identity.build_id, identity.p_max, identity.baud) == ("ehw-controller", 0x1234, 0, BAUD)
+    assert identity.distance_rule is None  # the controller has no fitness
     rng = np.random.default_rng(SEED)
     rows = rng.integers(0, 1 << 19, 50, dtype=np.uint32)
     client.set_reflex(False)
@@ -172,7 +173,8 @@ def test_single_buffered_evaluator_top_matches_the_reference():
 
     client, line = _client(EvaluatorLinkTop(CLK, BAUD, double_buffer=False, timeout_s=1e-4), 20_000)
     line.run_cycles(2100)  # the evaluator sweeps its RAM after reset
-    assert client.identify().p_max == 1
+    identity = client.identify()
+    assert (identity.p_max, identity.distance_rule) == (1, "forward")
     board = LinkEvaluatorBoard(client, 1, reflex=True, check=True)
     reference = ReferenceEvaluatorBoard(reflex=True)
     rng = np.random.default_rng(SEED)
@@ -359,3 +361,29 @@ def test_wrong_design_and_silent_board_are_named():
 
     with pytest.raises(LinkError, match="/dev/ttyFAKE: no board answers IDENTIFY.*after 4 tries"):
         boards_over([LinkClient(Silent())])
+
+
+def test_a_board_of_another_distance_rule_or_protocol_is_named():
+    """IDENTIFY carries the distance rule the board's fitness counts (a circuit constant): a run of
+    the other rule stops at IDENTIFY with one line naming both rules, not at the first controller
+    whose distances differ; a bitstream whose IDENTIFY is a byte short (built before the rule was
+    reported) is told to be rebuilt."""
+    from cosim.link.boards import boards_over
+    from cosim.link.emulated import EmulatedLine, EmulatedSystemBoard
+    from hdl.link_protocol import IDENTIFY_REPLY, distance_rule_code, distance_rule_name, layout_bytes
+
+    assert [distance_rule_name(distance_rule_code(r)) for r in (None, "covered", "forward")] == [None, "covered", "forward"]
+    with pytest.raises(ValueError, match="unknown distance rule code 3"):
+        distance_rule_name(3)
+    assert LinkClient(EmulatedLine(EmulatedSystemBoard("covered"))).identify().distance_rule == "covered"
+    boards_over([LinkClient(EmulatedLine(EmulatedSystemBoard("covered")))], distance_rule="covered")
+    with pytest.raises(LinkError, match="counts the 'covered' distance rule, this run 'forward': run with --distance covered"):
+        boards_over([LinkClient(EmulatedLine(EmulatedSystemBoard("covered")))], distance_rule="forward")
+
+    class Stale(EmulatedSystemBoard):  # IDENTIFY without its last byte, as before the rule was in it
+        def _identify(self, payload):
+            return super()._identify(payload)[:-1]
+
+    n = layout_bytes(IDENTIFY_REPLY)
+    with pytest.raises(LinkError, match=f"IDENTIFY replied {n - 1} bytes, expected {n}: a bitstream built before"):
+        boards_over([LinkClient(EmulatedLine(Stale()))])

@@ -217,11 +217,11 @@ def boards_over(clients, reflex: bool = True, check: bool = True, distance_rule:
     """(controller board, evaluator board) over one client (an ``ehw-system`` board) or two
     (``ehw-controller``, ``ehw-evaluator``); checks each board's design first."""
     if len(clients) == 1:
-        identity = clients[0].expect(Design.SYSTEM)
+        identity = clients[0].expect(Design.SYSTEM, distance_rule=distance_rule)
         controller_client = evaluator_client = clients[0]
     elif len(clients) == 2:
         clients[0].expect(Design.CONTROLLER)
-        identity = clients[1].expect(Design.EVALUATOR)
+        identity = clients[1].expect(Design.EVALUATOR, distance_rule=distance_rule)
         controller_client, evaluator_client = clients
     else:
         raise ValueError(f"one port (a system board) or two (controller, evaluator), got {len(clients)!r}")

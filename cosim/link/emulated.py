@@ -52,6 +52,7 @@ from hdl.link_protocol import (
     Design,
     FrameHeader,
     Status,
+    distance_rule_code,
     layout_bytes,
 )
 
@@ -116,7 +117,8 @@ class EmulatedSystemBoard:
     def _identify(self, payload):
         name = Design.SYSTEM.value.encode().ljust(NAME_BYTES, b"\0")
         return pack(IDENTIFY_REPLY, design=int.from_bytes(name, "little"), layout_version=GENOME_LAYOUT_VERSION,
-                    build_id=0, p_max=self.p_max, clk_freq_hz=CLK_FREQ_HZ, baud=self.baud)
+                    build_id=0, p_max=self.p_max, clk_freq_hz=CLK_FREQ_HZ, baud=self.baud,
+                    distance_rule=distance_rule_code(self.distance_rule))
 
     def _read_counters(self, payload):
         return pack(COUNTERS_REPLY, frames_ok=self.frames_ok + 1, frames_rejected=self.frames_rejected,

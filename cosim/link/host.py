@@ -134,6 +134,17 @@ class Identity:
     p_max: int
     clk_freq_hz: int
     baud: int
+    distance_rule: str | None = None  # the rule the board's fitness counts (None: it has none)
+
+
+def check_distance_rule(port: str, identity: Identity, rule: str) -> None:
+    """A clear error unless the board's fitness counts the run's distance rule ``rule``: a
+    bitstream is built for one rule (a circuit constant), and a board of the other one would
+    disagree with the run's reference at the first controller whose distances differ."""
+    if identity.distance_rule != rule:
+        raise LinkError(f"{port}: the board's fitness counts the {identity.distance_rule!r} distance rule, "
+                        f"this run {rule!r}: run with --distance {identity.distance_rule}, or rebuild the "
+                        "bitstream for the run's rule")
 
 
 @dataclass
@@ -323,19 +334,39 @@ class LinkClient:
     # -- the commands ---------------------------------------------------------------------------
 
     def identify(self) -> Identity:
-        reply = unpack(IDENTIFY_REPLY, self.request(Command.IDENTIFY, reply_length=_layout_bytes(IDENTIFY_REPLY)))
-        name = int(reply.design).to_bytes(NAME_BYTES, "little").rstrip(b"\0").decode("ascii", "replace")
-        return Identity(design=name, layout_version=reply.layout_version, build_id=reply.build_id,
-                        p_max=reply.p_max, clk_freq_hz=reply.clk_freq_hz, baud=reply.baud)
+        return self._identity(self.request(Command.IDENTIFY))
 
-    def expect(self, *designs: Design) -> Identity:
-        """IDENTIFY, and a clear error unless the board is one of ``designs`` with this genome layout."""
+    def _identity(self, body: bytes) -> Identity:
+        from hdl.link_protocol import distance_rule_name
+
+        n = _layout_bytes(IDENTIFY_REPLY)
+        if len(body) != n:
+            stale = (": a bitstream built before IDENTIFY reported the distance rule; rebuild it (make bitstream)"
+                     if len(body) == n - 1 else "")
+            raise LinkError(f"{self.port}: IDENTIFY replied {len(body)} bytes, expected {n}{stale}")
+        reply = unpack(IDENTIFY_REPLY, body)
+        name = int(reply.design).to_bytes(NAME_BYTES, "little").rstrip(b"\0").decode("ascii", "replace")
+        try:
+            rule = distance_rule_name(int(reply.distance_rule))
+        except ValueError:
+            raise LinkError(f"{self.port}: the board reports distance rule code {int(reply.distance_rule)}, "
+                            "which this host does not know") from None
+        return Identity(design=name, layout_version=reply.layout_version, build_id=reply.build_id,
+                        p_max=reply.p_max, clk_freq_hz=reply.clk_freq_hz, baud=reply.baud, distance_rule=rule)
+
+    def expect(self, *designs: Design, distance_rule: str | None = None) -> Identity:
+        """IDENTIFY, and a clear error unless the board is one of ``designs`` with this genome layout
+        (and, given ``distance_rule``, a fitness that counts that rule)."""
         from hdl.link_protocol import GENOME_LAYOUT_VERSION
 
+        n = _layout_bytes(IDENTIFY_REPLY)
         try:
-            identity = self.identify()
+            body = self.request(Command.IDENTIFY)
+            if len(body) not in (n, n - 1):  # n - 1: a stale bitstream, which _identity names
+                raise LinkError(f"{self.port}: IDENTIFY replied {len(body)} bytes, expected {n}")
         except LinkError as exc:
             raise LinkError(f"{self.port}: no board answers IDENTIFY ({exc})") from None
+        identity = self._identity(body)
         names = [d.value for d in designs]
         if identity.design not in names:
             raise LinkError(f"{self.port}: the board is {identity.design!r}, expected "
@@ -344,6 +375,8 @@ class LinkClient:
         if identity.layout_version != GENOME_LAYOUT_VERSION:
             raise LinkError(f"{self.port}: the board's genome layout is version {identity.layout_version}, "
                             f"this host's is {GENOME_LAYOUT_VERSION}: rebuild the bitstream")
+        if distance_rule is not None:
+            check_distance_rule(self.port, identity, distance_rule)
         return identity
 
     def read_counters(self) -> dict:

@@ -22,7 +22,7 @@ import numpy as np
 from cosim.boards.interfaces import LearnResult
 from cosim.boards.reference import ReferenceLearningBoard, checked_state_dict
 from cosim.link.boards import LinkControllerBoard, LinkMismatch, LinkModelBoard
-from cosim.link.host import LinkClient, LinkError, pack, unpack
+from cosim.link.host import LinkClient, LinkError, check_distance_rule, pack, unpack
 from ga.motions import DEFAULT_DISTANCE_RULE
 from hdl.link_protocol import (
     LEARN_REPLY,
@@ -50,6 +50,7 @@ class LinkLearningBoard(LinkModelBoard):
 
         self.client = client
         identity = client.identity or client.expect(Design.LEARNER)
+        check_distance_rule(client.port, identity, distance_rule)
         if identity.p_max != config.population:
             raise LinkError(f"{client.port}: the board's engine holds {identity.p_max} individuals, "
                             f"the run's population is {config.population} (--population)")
