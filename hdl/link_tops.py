@@ -120,6 +120,7 @@ class _LinkTop(wiring.Component):
     """
 
     DESIGN: Design
+    distance_rule: str | None = None  # the rule the board's fitness counts (None: it has no fitness)
     rx: In(1, init=1)
     tx: Out(1, init=1)
 
@@ -151,7 +152,7 @@ class _LinkTop(wiring.Component):
         return {"design": int.from_bytes(name.ljust(NAME_BYTES, b"\0"), "little"),
                 "layout_version": GENOME_LAYOUT_VERSION, "build_id": self.build_id,
                 "p_max": self.P_MAX, "clk_freq_hz": round(self.clk_freq_hz), "baud": round(self.baud),
-                "distance_rule": distance_rule_code(getattr(self, "distance_rule", None))}
+                "distance_rule": distance_rule_code(self.distance_rule)}
 
     def elaborate(self, platform):
         m = Module()

@@ -79,6 +79,10 @@ class NotLoaded(LinkError):
     """EVALUATE answered NOT_LOADED: the genome must be loaded again first."""
 
 
+class StaleBitstream(LinkError):
+    """A board that answers IDENTIFY in a form this host cannot use: a bitstream to rebuild."""
+
+
 @functools.cache
 def _layout(layout) -> data.Layout:
     return data.Layout.cast(layout)
@@ -340,17 +344,18 @@ class LinkClient:
         from hdl.link_protocol import distance_rule_name
 
         n = _layout_bytes(IDENTIFY_REPLY)
+        if len(body) == n - 1:
+            raise StaleBitstream(f"{self.port}: IDENTIFY replied {len(body)} bytes, expected {n}: a bitstream "
+                                 "built before IDENTIFY reported the distance rule; rebuild it (make bitstream)")
         if len(body) != n:
-            stale = (": a bitstream built before IDENTIFY reported the distance rule; rebuild it (make bitstream)"
-                     if len(body) == n - 1 else "")
-            raise LinkError(f"{self.port}: IDENTIFY replied {len(body)} bytes, expected {n}{stale}")
+            raise LinkError(f"{self.port}: IDENTIFY replied {len(body)} bytes, expected {n}")
         reply = unpack(IDENTIFY_REPLY, body)
         name = int(reply.design).to_bytes(NAME_BYTES, "little").rstrip(b"\0").decode("ascii", "replace")
         try:
             rule = distance_rule_name(int(reply.distance_rule))
         except ValueError:
-            raise LinkError(f"{self.port}: the board reports distance rule code {int(reply.distance_rule)}, "
-                            "which this host does not know") from None
+            raise StaleBitstream(f"{self.port}: the board reports distance rule code {int(reply.distance_rule)}, "
+                                 "which this host does not know") from None
         return Identity(design=name, layout_version=reply.layout_version, build_id=reply.build_id,
                         p_max=reply.p_max, clk_freq_hz=reply.clk_freq_hz, baud=reply.baud, distance_rule=rule)
 
@@ -359,14 +364,12 @@ class LinkClient:
         (and, given ``distance_rule``, a fitness that counts that rule)."""
         from hdl.link_protocol import GENOME_LAYOUT_VERSION
 
-        n = _layout_bytes(IDENTIFY_REPLY)
         try:
-            body = self.request(Command.IDENTIFY)
-            if len(body) not in (n, n - 1):  # n - 1: a stale bitstream, which _identity names
-                raise LinkError(f"{self.port}: IDENTIFY replied {len(body)} bytes, expected {n}")
+            identity = self.identify()
+        except StaleBitstream:
+            raise
         except LinkError as exc:
             raise LinkError(f"{self.port}: no board answers IDENTIFY ({exc})") from None
-        identity = self._identity(body)
         names = [d.value for d in designs]
         if identity.design not in names:
             raise LinkError(f"{self.port}: the board is {identity.design!r}, expected "
