@@ -99,11 +99,13 @@ def learner_config(lanes: int = LEARNER_LANES):
     return HardwareGAConfig(population=500, tournament=20, lanes=lanes)
 
 
-def _learner_top(clk_freq_hz: float, config=None):
+def _learner_top(clk_freq_hz: float, config=None, baud: float | None = None):
     """The bitstream's top; with ``config`` (``ehw gatesim ulx3s-learner --ga hardware``) the same
-    top built for another engine."""
+    top built for another engine, and with ``baud`` its link at that baud (None: 115,200)."""
     from hdl.learner_link import LearnerLinkTop
-    return LearnerLinkTop(clk_freq_hz=clk_freq_hz, config=learner_config() if config is None else config)
+    from hdl.uart import DEFAULT_BAUD
+    return LearnerLinkTop(clk_freq_hz=clk_freq_hz, baud=DEFAULT_BAUD if baud is None else baud,
+                          config=learner_config() if config is None else config)
 
 
 @dataclass(frozen=True)

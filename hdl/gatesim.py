@@ -236,13 +236,16 @@ def _pin_directions(verilog: str, directions: dict[str, str]) -> str:
     return verilog
 
 
-def synthesize(target_name: str, root: Path | str = NETLIST_ROOT, *, progress=print, engine=None) -> GateNetlist:
+def synthesize(target_name: str, root: Path | str = NETLIST_ROOT, *, progress=print, engine=None,
+               baud: float | None = None) -> GateNetlist:
     """The synthesised netlist of bitstream target ``target_name`` (cached under ``root``); with
     ``engine`` (a ``ga.hardware_ga.HardwareGAConfig``; ``ulx3s-learner`` only) its top built for that
-    learning engine instead of the bitstream's, in a folder of its own."""
+    learning engine instead of the bitstream's, in a folder of its own, its link at ``baud`` (None:
+    the bitstream's 115,200)."""
     import time
 
     from hdl.fpga import TARGETS, OnBoard
+    from hdl.uart import uart_divisor
 
     if target_name not in TARGETS:
         raise GateSimError(f"unknown target {target_name!r}; known: {', '.join(TARGETS)}")
@@ -254,9 +257,12 @@ def synthesize(target_name: str, root: Path | str = NETLIST_ROOT, *, progress=pr
     clock_hz = target.clock_hz(platform)  # with a PLL, the model passes the pin's clock through
     if engine is not None and target_name != "ulx3s-learner":
         raise GateSimError(f"{target_name} has no learning engine to build for {engine!r}")
-    top = target.top(clock_hz) if engine is None else target.top(clock_hz, engine)
+    if baud is not None and engine is None:
+        raise GateSimError(f"{target_name}: only the engine's top (--ga hardware) is built at another baud")
+    top = target.top(clock_hz) if engine is None else target.top(clock_hz, engine, baud)
     folder = (target_name if engine is None else
-              f"{target_name}_p{engine.population}_t{engine.tournament}_l{engine.lanes}")
+              f"{target_name}_p{engine.population}_t{engine.tournament}_l{engine.lanes}"
+              f"_d{uart_divisor(clock_hz, top.baud)}")
     out = (Path(root) / folder).resolve()
     module = module_name(target_name)
     netlist = out / f"{module}.v"

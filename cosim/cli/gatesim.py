@@ -39,6 +39,10 @@ def gatesim_parser(p) -> None:
                            "(default: %(default)s: ulx3s-learner runs the motions check)")
     life.add_argument("--lanes", type=int, default=LEARNER_LANES,
                       help="--ga hardware: the engine's lanes (default: %(default)s, the bitstream's)")
+    life.add_argument("--baud", type=float, default=None,
+                      help="--ga hardware: the engine top's link baud (default: the fastest the 30 MHz "
+                           "clock allows, 7.5 Mbaud, 4 cycles a bit; the motions check runs the "
+                           "bitstream's own top at its 115,200)")
     life.add_argument("--max-interactions", type=int, default=40,
                       help="stop the lifetime after this many interactions: every byte costs "
                            "~1,000-2,000 gate-level clock cycles (default: %(default)s)")
@@ -65,6 +69,17 @@ def cmd_gatesim(args, extras: dict, sub=None) -> int:
                               max_interactions=args.max_interactions, ga=args.ga, lanes=args.lanes)
     except (TypeError, ValueError) as exc:
         raise UserError(f"the lifetime's options: {exc}") from None
+    if args.baud is not None and args.ga != "hardware":
+        raise UserError("--baud: only the engine's top (ulx3s-learner --ga hardware) is built at another baud; "
+                        "the others run the bitstream's own top")
+    if args.baud is not None:
+        from hdl.fpga import TARGETS
+        from hdl.uart import uart_divisor
+
+        try:
+            uart_divisor(TARGETS["ulx3s-learner"].pll_hz, args.baud)
+        except ValueError as exc:
+            raise UserError(f"--baud {args.baud:g}: {exc}") from None
     if args.ga == "hardware" and (names != ["ulx3s-learner"] or args.netlist != "synth"):
         raise UserError("--ga hardware: the lifetime on the learning engine is ulx3s-learner's, on its "
                         f"synthesised netlist (ehw gatesim ulx3s-learner --ga hardware), not {' '.join(names)}"
@@ -81,7 +96,8 @@ def cmd_gatesim(args, extras: dict, sub=None) -> int:
     failed = []
     for name in names:
         entry = run_gatesim(name, config=config, genomes=args.genomes, states=args.states, seed=args.seed,
-                            simulator=args.simulator, kind=args.netlist, progress=not args.no_progress)
+                            simulator=args.simulator, kind=args.netlist, progress=not args.no_progress,
+                            engine_baud=args.baud)
         key = f"{name}:pnr" if args.netlist == "pnr" else f"{name}:engine" if args.ga == "hardware" else name
         write_results(args.results, key, entry)
         verdict = "EQUAL to the reference" if entry["equal_to_reference"] else "DIFFERS from the reference"

@@ -23,7 +23,9 @@ routed for the bitstream (``hdl.gatesim.place_and_route``, iCE40). Per target th
   (``cosim.link.learning``, the ``serial`` backend's ``--ga hardware`` boards, the reference
   engine beside it). The bitstream's engine holds 500 individuals, whose upload alone would take
   ~18 hours at gate level, so this netlist is the same top synthesised for the lifetime's
-  ``--population``, ``--tournament`` and ``--lanes`` (default the bitstream's 7).
+  ``--population``, ``--tournament`` and ``--lanes`` (default the bitstream's 7), its link at
+  the fastest baud its clock allows (``--baud``; 4 cycles a bit, so the engine's cycles, not the
+  line's, fill the simulation; the bitstream's own top at 115,200 is the motions check).
 
 ``results/gatesim.json`` holds ``targets.<target>`` (``<target>:pnr`` for the routed netlist,
 ``ulx3s-learner:engine`` for the lifetime on the engine): ``netlist`` (kind, tool), ``simulator``,
@@ -95,12 +97,16 @@ def reference_lifetime(config) -> tuple[dict, list[int]]:
 
 def run_gatesim(target: str, *, config=None, genomes: int = 3, states: int = 24, seed: int = 1,
                 out: Path | str | None = None, progress: bool = True, simulator: str = "verilator",
-                kind: str = "synth", quick_build: bool = False, print_=print) -> dict:
+                kind: str = "synth", quick_build: bool = False, engine_baud: float | None = None,
+                print_=print) -> dict:
     """Synthesise ``target``'s board top(s), simulate the check of ``CHECKS[target]`` and return
     its ``results/gatesim.json`` entry (``config``: the lifetime's ``OnlineConfig``; ``kind``:
     ``synth``, Yosys's netlist, or ``pnr``, nextpnr's placed and routed one;
     ``quick_build``: Verilator's C++ compiled without optimisation, minutes sooner for a short
-    check, the simulation itself slower)."""
+    check, the simulation itself slower; ``engine_baud``: the link's baud of the engine's top for
+    ``--ga hardware``; None: the fastest its clock allows, 4 cycles a bit: at the bitstream's
+    115,200 baud the bytes would take ~97 % of the lifetime's ~40 M gate-level cycles, and that
+    baud on the bitstream's own top is what the motions check shows)."""
     from cosim.boards.cocotb_run import REPO_ROOT, CocotbFailure, run_cocotb
     from cosim.link.simulated import host_timeout_s
     from hdl.gatesim import (cell_models, check_modelled, harness_verilog, place_and_route, simulator_flags,
@@ -114,9 +120,14 @@ def run_gatesim(target: str, *, config=None, genomes: int = 3, states: int = 24,
         from cosim.online.learning_phase import hardware_ga_config
 
         check, engine = "lifetime", hardware_ga_config(config)
+        if engine_baud is None:
+            from hdl.fpga import TARGETS
+            from hdl.uart import max_baud
+
+            engine_baud = float(max_baud(TARGETS[target].pll_hz))
     t0 = time.perf_counter()
     if kind == "synth":
-        netlists = {role: synthesize(name, progress=print_, engine=engine)
+        netlists = {role: synthesize(name, progress=print_, engine=engine, baud=engine_baud)
                     for role, name in _roles(target, check).items()}
     else:
         netlists = {role: place_and_route(name, progress=print_) for role, name in _roles(target, check).items()}
