@@ -160,7 +160,7 @@ bitstream: $(FPGA_STAMP) hdl-tools
 # (ulx3s-learner only when named). Then the first three targets' netlists as nextpnr placed and routed
 # them (GATESIM_PNR_TARGETS; nextpnr comes with the `fpga` extra). Minutes a target;
 # tests/test_gatesim.py runs the smallest. GATESIM_LEARNER=1 adds ulx3s-learner: the bitstream's
-# netlist (motions, ~45 min) and a lifetime on its engine built for a population of 4 (hours).
+# netlist (motions, ~45 min) and a lifetime on its engine built for a population of 4 (~22 min).
 GATESIM_TARGETS ?=
 GATESIM_PNR_TARGETS ?= icebreaker-controller icebreaker-evaluator ulx3s-system
 GATESIM_LEARNER ?=

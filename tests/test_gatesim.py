@@ -48,26 +48,31 @@ def test_the_engine_lifetime_is_only_the_learners(ehw):
     one_error(*ehw("gatesim", "icebreaker-controller", "--ga", "hardware")[::2], "ulx3s-learner")
     one_error(*ehw("gatesim", "ulx3s-learner", "--ga", "hardware", "--netlist", "pnr")[::2], "--netlist pnr")
     one_error(*ehw("gatesim", "ulx3s-learner", "--ga", "hardware", "--lanes", "0")[::2], "--lanes")
+    one_error(*ehw("gatesim", "ulx3s-learner", "--baud", "1e6")[::2], "--baud")  # the bitstream's own top
+    one_error(*ehw("gatesim", "ulx3s-learner", "--ga", "hardware", "--baud", "2e7")[::2], "--baud")
 
 
 def test_the_engine_lifetime_synthesises_the_engine_it_runs(monkeypatch):
     """The learner's lifetime check builds its top for the lifetime's engine (population,
-    tournament, lanes) in a folder of its own, beside the bitstream's netlist."""
+    tournament, lanes) in a folder of its own, beside the bitstream's netlist, its link at the
+    fastest baud of the 30 MHz clock (4 cycles a bit) unless told another."""
     from cosim.launch import gatesim as launch
     from cosim.online.config import OnlineConfig
     from hdl import gatesim
 
     asked = []
 
-    def synthesize(name, progress=print, engine=None):
-        asked.append((name, engine))
+    def synthesize(name, progress=print, engine=None, baud=None):
+        asked.append((name, engine, baud))
         raise gatesim.GateSimError("stop here")
 
     monkeypatch.setattr(gatesim, "synthesize", synthesize)
     config = OnlineConfig(seed=1, n_targets=1, population=4, tournament=2, ga="hardware", lanes=3)
-    with pytest.raises(gatesim.GateSimError, match="stop here"):
-        launch.run_gatesim("ulx3s-learner", config=config, print_=lambda *_: None)
-    (name, engine), = asked
+    for engine_baud in (None, 115_200.0):
+        with pytest.raises(gatesim.GateSimError, match="stop here"):
+            launch.run_gatesim("ulx3s-learner", config=config, engine_baud=engine_baud, print_=lambda *_: None)
+    (name, engine, fastest), (_, _, slow) = asked
     assert name == "ulx3s-learner" and (engine.population, engine.tournament, engine.lanes) == (4, 2, 3)
+    assert (fastest, slow) == (7_500_000.0, 115_200.0)
     assert launch.learns_on_engine("ulx3s-learner", config)
     assert not launch.learns_on_engine("ulx3s-learner", OnlineConfig(seed=1))
