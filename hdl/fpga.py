@@ -143,8 +143,9 @@ TARGETS = {t.name: t for t in (
     Target("ulx3s-learner", "ULX3S", "amaranth_boards.ulx3s:ULX3S_85F_Platform",
            "ecp5", f"LearnerLinkTop(lanes={LEARNER_LANES})", _learner_top, f"{BUILD_NAME}.bit",
            # router1: router2 stalled on the 7- and 8-lane builds (1,700 and 4,000 overused wires,
-           # rising); router1 routed 7 lanes in 22 min (docs/learner.md, "Resources and clock")
-           nextpnr_opts="--router router1", in_default=False,  # an hour or more: only when named
+           # rising); the static placer: router1 routes its placement in ~400 s against ~900-1,350
+           # after HeAP's, at 32.9-33.9 MHz (docs/fpga.md, "Build time")
+           nextpnr_opts="--router router1 --placer static", in_default=False,  # ~20 min: only when named
            # the ECP5 PLL's 30 MHz (hdl.ecp5_pll): routed at 31.40 MHz (a886e0d, docs/learner.md)
            pll_hz=LEARNER_CLOCK_HZ,
            params=lambda: {k: v for k, v in learner_config().to_dict().items()
