@@ -246,3 +246,15 @@ def test_learner_target_runs_at_its_pll_clock():
     assert "cell \\EHXPLLL" in rtlil and "parameter \\CLKFB_DIV 6" in rtlil and "\\SGSR" in rtlil
     assert 'FREQUENCY PORT "clk25_0__io" 25000000.0 HZ' in lpf, lpf
     assert top.clk_freq_hz == 30e6 and uart_divisor(top.clk_freq_hz, top.baud) == 260
+
+
+def test_the_router_flag_replaces_the_targets_router():
+    """--router swaps the target's router for the one asked and keeps every other option."""
+    from hdl.fpga import TARGETS, nextpnr_options
+
+    learner = TARGETS["ulx3s-learner"]
+    assert nextpnr_options(learner).split()[-4:] == ["--router", "router1", "--placer", "static"]
+    swapped = nextpnr_options(learner, seed=3, router="router2").split()
+    assert swapped.count("--router") == 1 and swapped[swapped.index("--router") + 1] == "router2"
+    assert "--placer" in swapped and swapped[swapped.index("--seed") + 1] == "3"
+    assert nextpnr_options(TARGETS["ulx3s-system"], router="router2").endswith("--router router2")
