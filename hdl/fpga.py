@@ -144,7 +144,7 @@ TARGETS = {t.name: t for t in (
            "ecp5", f"LearnerLinkTop(lanes={LEARNER_LANES})", _learner_top, f"{BUILD_NAME}.bit",
            # router1: router2 stalled on the 7- and 8-lane builds (1,700 and 4,000 overused wires,
            # rising); the static placer: router1 routes its placement in ~400 s against ~900-1,350
-           # after HeAP's, at 32.9-33.9 MHz (docs/fpga.md, "Build time")
+           # after HeAP's, at 32.9-33.9 MHz (docs/fpga.md, "Build time of the learner")
            nextpnr_opts="--router router1 --placer static", in_default=False,  # ~20 min: only when named
            # the ECP5 PLL's 30 MHz (hdl.ecp5_pll): routed at 31.40 MHz (a886e0d, docs/learner.md)
            pll_hz=LEARNER_CLOCK_HZ,
@@ -341,7 +341,7 @@ def build(target: Target, build_root: Path | str = BUILD_ROOT, env: dict | None 
     plan = platform.build(
         OnBoard(target.top(clock_hz), target.pll_hz), name=BUILD_NAME, build_dir=str(out), do_build=False,
         script_after_synth=f"tee -q -o {stat} stat -json",
-        nextpnr_opts=nextpnr_options(target, seed, router),
+        nextpnr_opts=(options := nextpnr_options(target, seed, router)),
     )
     commit = source_commit()  # the design was elaborated from this checkout just now
     t0 = time.perf_counter()
@@ -376,7 +376,7 @@ def build(target: Target, build_root: Path | str = BUILD_ROOT, env: dict | None 
                     "nextpnr_report": str(out / report), "yosys_stat": str(out / stat)},
         "build_s": round(build_s, 1),
         "seed": seed,
-        "nextpnr_opts": nextpnr_options(target, seed, router),
+        "nextpnr_opts": options,
         "commit": commit,
         "tools": tool_versions(target.family, env),
         "built": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
@@ -427,7 +427,8 @@ def main(argv=None) -> int:
     parser.add_argument("--seed", type=int, default=1, help="nextpnr's placement seed (default %(default)s)")
     parser.add_argument("--router", choices=("router1", "router2"), default=None,
                         help="nextpnr's router instead of the target's (ulx3s-learner: router1; router2 "
-                             "routes its static placement ~2.5 min sooner, at 30.76 MHz against 32.85)")
+                             "routes its static placement at 30.76 MHz against 32.85, its whole build "
+                             "no sooner as measured: docs/fpga.md)")
     parser.add_argument("--list", action="store_true", help="list the targets and exit")
     args = parser.parse_args(argv)
     if args.list:
